@@ -1,0 +1,1 @@
+"""The loop and the product surface: scheduler, safety supervisor, experiments, logs, CLI."""
