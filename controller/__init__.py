@@ -1,5 +1,72 @@
 """The math of Kim et al., ICRA 2018, for n flexible joints: pure numpy/scipy, no I/O.
 
 One module per block of the paper: model (1)-(4), (20); LQR (21)-(24); DOB (9)-(11);
-gravity compensator (5)-(8); composition (25); baselines. Imports nothing of ours.
+gravity compensator (5)-(8); composition (25); state estimation from the encoders; the four
+controllers the loop runs ("pid", "gc", "gc+lqr", "gc+lqr+dob"). Imports nothing of ours.
 """
+
+from controller.composition import COMPOSITION_READINGS, Composition, CompositionReading
+from controller.controllers import (
+    CONTROLLER_NAMES,
+    ControllerParams,
+    ControllerUsageError,
+    ControlTerms,
+    JointController,
+    make_controller,
+)
+from controller.dob import LAB_DOB_CUTOFF_HZ, DisturbanceObserver, q_filter_pole
+from controller.estimation import (
+    LINK_ENCODER_RESOLUTION_RAD,
+    MOTOR_ENCODER_RESOLUTION_RAD,
+    FlexibleJointStateEstimator,
+)
+from controller.gravity import (
+    GravityCompensator,
+    GravityModel,
+    NoGravity,
+    PendulumGravity,
+    support_force_split,
+)
+from controller.lqr import (
+    LqrWeights,
+    TrackingGain,
+    design_continuous_tracking_lqr,
+    design_discrete_tracking_lqr,
+)
+from controller.model import (
+    FlexibleJointParams,
+    discretise,
+    flexible_joint_state_space,
+    single_link_sm,
+)
+
+__all__ = [
+    "COMPOSITION_READINGS",
+    "CONTROLLER_NAMES",
+    "LAB_DOB_CUTOFF_HZ",
+    "LINK_ENCODER_RESOLUTION_RAD",
+    "MOTOR_ENCODER_RESOLUTION_RAD",
+    "Composition",
+    "CompositionReading",
+    "ControlTerms",
+    "ControllerParams",
+    "ControllerUsageError",
+    "DisturbanceObserver",
+    "FlexibleJointParams",
+    "FlexibleJointStateEstimator",
+    "GravityCompensator",
+    "GravityModel",
+    "JointController",
+    "LqrWeights",
+    "NoGravity",
+    "PendulumGravity",
+    "TrackingGain",
+    "design_continuous_tracking_lqr",
+    "design_discrete_tracking_lqr",
+    "discretise",
+    "flexible_joint_state_space",
+    "make_controller",
+    "q_filter_pole",
+    "single_link_sm",
+    "support_force_split",
+]

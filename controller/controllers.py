@@ -1,0 +1,377 @@
+"""The four controllers of Kim et al., ICRA 2018, Sec. IV, behind one interface the loop uses.
+
+    "pid"         the actuator's own position control: the desired link angle goes straight
+                  to the servo as its goal (the paper's "PID" / default controller).
+    "gc"          gravity compensator only: u = theta_d + ug(theta_d), (8).
+    "gc+lqr"      GC + the discrete derivative-form LQR (21)-(24): u = uc + ug.
+    "gc+lqr+dob"  GC + LQR + DOB (9)-(11), composed by (25) in the chosen reading.
+
+Conventions: reference_rad is the desired LINK angle theta_d; the output is the goal MOTOR angle
+u for the actuator's position servo; angles in rad; arrays of length n.
+
+Each tick the loop calls `step(theta_m, theta_j, theta_d)`, sends the goal (possibly clipped by
+the supervisor), then `notify_applied(goal_sent)`: the DOB and the accumulation use what was
+really sent (anti-windup). `reset` must come first and gives a bumpless start from the present
+motor angle. Calling out of this order raises `ControllerUsageError`.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controller.composition import COMPOSITION_READINGS, Composition, CompositionReading
+from controller.dob import LAB_DOB_CUTOFF_HZ, DisturbanceObserver
+from controller.estimation import FlexibleJointStateEstimator
+from controller.gravity import GravityCompensator, GravityModel
+from controller.lqr import (
+    COUPLINGS,
+    Coupling,
+    LqrWeights,
+    TrackingGain,
+    design_discrete_tracking_lqr,
+)
+from controller.model import (
+    DISCRETISATIONS,
+    Discretisation,
+    FlexibleJointParams,
+    per_joint_array,
+    validate_sm,
+)
+
+CONTROLLER_NAMES: tuple[str, ...] = ("pid", "gc", "gc+lqr", "gc+lqr+dob")
+
+
+class ControllerUsageError(RuntimeError):
+    """A controller was called out of order (step before reset, no notify_applied, ...)."""
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Everything a controller needs besides Sm, the period and the gravity model.
+
+    joints: K, D, Kp per joint (the nominal model of (1), (4)).
+    lqr_weights: Qe, Qx, R of (22) (default: the paper's 10 and 1, as the lab coded them).
+    kdist: DOB weighting gain per joint (scalar = all joints); the paper's testbed uses 1.0
+        and 0.5, the humanoid 0.2 scheduled to 1.0 at landing. Changeable while running.
+    dob_cutoff_hz: Q(s) cut-off (default 11.35 Hz = the lab's 0.7 pole at 200 Hz).
+    composition: "accumulated" (the lab's code, default) or "literal"; see composition.py
+        (accumulated with Kdist = 1 tolerates a true servo gain at most ~22 % above the nominal
+        Kp for light links; literal holds +-30 %).
+    discretisation: "zoh" (default) or "euler" (the lab's), for the LQR model and Pn^-1.
+    lqr_coupling: "full" (whole Sm, default) or "diagonal" (the lab's: diagonal of Sm only).
+    link_velocity_cutoff_hz: None = plain backward difference (default), else a low pass.
+    """
+
+    joints: FlexibleJointParams
+    lqr_weights: LqrWeights = field(default_factory=LqrWeights)
+    kdist: np.ndarray | float = 1.0
+    dob_cutoff_hz: float = LAB_DOB_CUTOFF_HZ
+    composition: CompositionReading = "accumulated"
+    discretisation: Discretisation = "zoh"
+    lqr_coupling: Coupling = "full"
+    link_velocity_cutoff_hz: float | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.joints, FlexibleJointParams):
+            raise TypeError(f"joints must be FlexibleJointParams, got {type(self.joints).__name__}")
+        if not isinstance(self.lqr_weights, LqrWeights):
+            raise TypeError(
+                f"lqr_weights must be LqrWeights, got {type(self.lqr_weights).__name__}"
+            )
+        object.__setattr__(
+            self, "kdist", per_joint_array(self.kdist, "kdist", self.joints.n_joints)
+        )
+        if not (np.isfinite(self.dob_cutoff_hz) and self.dob_cutoff_hz > 0):
+            raise ValueError(f"dob_cutoff_hz must be finite and > 0, got {self.dob_cutoff_hz}")
+        if self.composition not in COMPOSITION_READINGS:
+            raise ValueError(
+                f"composition must be one of {COMPOSITION_READINGS}, got {self.composition!r}"
+            )
+        if self.discretisation not in DISCRETISATIONS:
+            raise ValueError(
+                f"discretisation must be one of {DISCRETISATIONS}, got {self.discretisation!r}"
+            )
+        if self.lqr_coupling not in COUPLINGS:
+            raise ValueError(f"lqr_coupling must be one of {COUPLINGS}, got {self.lqr_coupling!r}")
+        cutoff = self.link_velocity_cutoff_hz
+        if cutoff is not None and not (np.isfinite(cutoff) and cutoff > 0):
+            raise ValueError(f"link_velocity_cutoff_hz must be None or > 0, got {cutoff}")
+
+    @property
+    def n_joints(self) -> int:
+        return self.joints.n_joints
+
+    @classmethod
+    def paper(cls, n_joints: int = 1, **overrides: object) -> ControllerParams:
+        """The paper's K = 2000, D = 100, Kp = 10, Q/R "10 and 1"; other fields as given."""
+        return cls(joints=FlexibleJointParams.uniform(n_joints), **overrides)  # type: ignore[arg-type]
+
+    def design_gain(self, sm: np.ndarray, dt_s: float) -> TrackingGain:
+        """The discrete LQR gain for this Sm (a few ms for 12 joints; not for every tick)."""
+        return design_discrete_tracking_lqr(
+            self.joints, sm, dt_s, self.lqr_weights, self.discretisation, self.lqr_coupling
+        )
+
+
+@dataclass(frozen=True)
+class ControlTerms:
+    """One tick's parts of the goal, for the log: u = uc + d_hat + ug [rad, per joint].
+
+    uc: LQR part (the reference itself for "pid" and "gc"); d_hat: the DOB's contribution to u
+    (in the accumulated reading, its running sum); ug: gravity feed-forward (8); u: the goal
+    (after notify_applied: what was sent). disturbance_estimate_rad: q(k), the Q-filtered
+    estimate before Kdist (zero for controllers without DOB).
+    """
+
+    uc: np.ndarray
+    d_hat: np.ndarray
+    ug: np.ndarray
+    u: np.ndarray
+    disturbance_estimate_rad: np.ndarray
+
+
+class JointController(abc.ABC):
+    """One controller for n joints, stepped once per tick by the loop (see module docstring)."""
+
+    name: str
+
+    def __init__(self, n_joints: int) -> None:
+        self.n_joints = n_joints
+        self._phase = "needs_reset"
+
+    def _joint_array(self, value: np.ndarray, what: str) -> np.ndarray:
+        array = np.asarray(value, dtype=float)
+        if array.shape != (self.n_joints,):
+            raise ValueError(f"{what} must have shape ({self.n_joints},), got {array.shape}")
+        if not np.all(np.isfinite(array)):
+            bad = np.flatnonzero(~np.isfinite(array)).tolist()
+            raise ValueError(f"{what} is not finite for joints {bad}: do not step on invalid data")
+        return array
+
+    def reset(
+        self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray, reference_rad: np.ndarray
+    ) -> None:
+        """Bumpless start: assume the servo rests at `motor_angle_rad` with that angle as goal."""
+        self._reset(
+            self._joint_array(motor_angle_rad, "motor_angle_rad"),
+            self._joint_array(link_angle_rad, "link_angle_rad"),
+            self._joint_array(reference_rad, "reference_rad"),
+        )
+        self._phase = "ready"
+
+    def step(
+        self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray, reference_rad: np.ndarray
+    ) -> np.ndarray:
+        """One tick: measured angles and desired link angles in, goal motor angles out [rad]."""
+        if self._phase != "ready":
+            raise ControllerUsageError(
+                f"{self.name}: step() called "
+                + (
+                    "before reset()"
+                    if self._phase == "needs_reset"
+                    else "again without notify_applied() for the previous goal"
+                )
+            )
+        goal = self._step(
+            self._joint_array(motor_angle_rad, "motor_angle_rad"),
+            self._joint_array(link_angle_rad, "link_angle_rad"),
+            self._joint_array(reference_rad, "reference_rad"),
+        )
+        self._phase = "awaiting_applied"
+        return goal.copy()
+
+    def notify_applied(self, applied_goal_rad: np.ndarray) -> None:
+        """The goal actually sent after the last step (clipped or not). Call after every step."""
+        if self._phase != "awaiting_applied":
+            raise ControllerUsageError(f"{self.name}: notify_applied() without a preceding step()")
+        self._notify_applied(self._joint_array(applied_goal_rad, "applied_goal_rad"))
+        self._phase = "ready"
+
+    def set_kdist(self, kdist: np.ndarray | float) -> None:
+        """Change the DOB gain per joint between ticks (only controllers with a DOB)."""
+        raise ControllerUsageError(
+            f"{self.name!r} has no disturbance observer; set_kdist needs 'gc+lqr+dob'"
+        )
+
+    @property
+    @abc.abstractmethod
+    def terms(self) -> ControlTerms:
+        """The last tick's parts (copies)."""
+
+    @abc.abstractmethod
+    def _reset(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> None: ...
+
+    @abc.abstractmethod
+    def _step(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> np.ndarray: ...
+
+    @abc.abstractmethod
+    def _notify_applied(self, applied: np.ndarray) -> None: ...
+
+
+class _FeedForwardController(JointController):
+    """The "pid" (no gravity compensator) and "gc" controllers: u = theta_d (+ ug(theta_d))."""
+
+    def __init__(self, name: str, n_joints: int, compensator: GravityCompensator | None) -> None:
+        super().__init__(n_joints)
+        self.name = name
+        self._compensator = compensator
+        self._reference = np.zeros(n_joints)
+        self._ug = np.zeros(n_joints)
+        self._u = np.zeros(n_joints)
+
+    def _reset(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> None:
+        self._reference[:] = reference
+        self._ug[:] = 0.0
+        self._u[:] = motor
+
+    def _step(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        self._reference[:] = reference
+        if self._compensator is not None:
+            self._ug[:] = self._compensator.input_rad(reference)
+        np.add(self._reference, self._ug, out=self._u)
+        return self._u
+
+    def _notify_applied(self, applied: np.ndarray) -> None:
+        self._u[:] = applied
+
+    @property
+    def terms(self) -> ControlTerms:
+        zero = np.zeros(self.n_joints)
+        uc = self._u - self._ug  # the reference, or what of it survived the supervisor
+        return ControlTerms(uc, zero, self._ug.copy(), self._u.copy(), zero.copy())
+
+
+class _LqrController(JointController):
+    """The "gc+lqr" and "gc+lqr+dob" controllers: estimator, LQR (+ DOB), composition (25)."""
+
+    def __init__(
+        self,
+        name: str,
+        params: ControllerParams,
+        gain: TrackingGain,
+        dt_s: float,
+        compensator: GravityCompensator,
+        use_dob: bool,
+    ) -> None:
+        n = params.n_joints
+        super().__init__(n)
+        self.name = name
+        self.params = params
+        self.dt_s = dt_s
+        self._gain = gain
+        self._compensator = compensator
+        self._estimator = FlexibleJointStateEstimator(n, dt_s, params.link_velocity_cutoff_hz)
+        self._dob = (
+            DisturbanceObserver(
+                params.joints.servo_gain_per_s,
+                params.dob_cutoff_hz,
+                dt_s,
+                params.kdist,
+                params.discretisation,
+            )
+            if use_dob
+            else None
+        )
+        self._composition = Composition(n, params.composition)
+        self._error = np.zeros(n)
+        self._increment = np.zeros(n)
+        self._scratch = np.zeros(n)
+        self._no_dob = np.zeros(n)
+
+    @property
+    def lqr_gain(self) -> TrackingGain:
+        return self._gain
+
+    def set_lqr_gain(self, gain: TrackingGain) -> None:
+        """Swap the LQR gain between ticks (e.g. Sm scheduled on posture and support foot)."""
+        if not isinstance(gain, TrackingGain) or gain.n_joints != self.n_joints:
+            raise ValueError(f"gain must be a TrackingGain for {self.n_joints} joints")
+        if not np.isclose(gain.dt_s, self.dt_s):
+            raise ValueError(f"gain designed for dt {gain.dt_s} s, the loop runs at {self.dt_s} s")
+        self._gain = gain
+
+    def set_kdist(self, kdist: np.ndarray | float) -> None:
+        if self._dob is None:
+            super().set_kdist(kdist)
+            return
+        self._dob.set_kdist(kdist)
+
+    def _reset(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> None:
+        self._estimator.reset(motor, link)
+        if self._dob is not None:
+            self._dob.reset(motor)
+        self._composition.reset(motor, self._compensator.input_rad(reference))
+
+    def _step(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        self._estimator.update(motor, link)
+        np.subtract(link, reference, out=self._error)
+        # duc(k) = -(Ke e(k) + Kx dx(k))   (24), discrete
+        np.matmul(self._gain.error_gain, self._error, out=self._increment)
+        np.matmul(self._gain.state_increment_gain, self._estimator.increment, out=self._scratch)
+        self._increment += self._scratch
+        np.negative(self._increment, out=self._increment)
+        if self._dob is not None:
+            # compares against the goal sent last tick (composition.u after notify_applied)
+            dob_term = self._dob.update(motor, self._composition.u)
+        else:
+            dob_term = self._no_dob
+        return self._composition.compose(
+            self._increment, dob_term, self._compensator.input_rad(reference)
+        )
+
+    def _notify_applied(self, applied: np.ndarray) -> None:
+        self._composition.notify_applied(applied)
+
+    @property
+    def terms(self) -> ControlTerms:
+        composition = self._composition
+        estimate = (
+            self._dob.filtered_estimate_rad if self._dob is not None else np.zeros(self.n_joints)
+        )
+        return ControlTerms(
+            composition.uc.copy(),
+            composition.d_hat.copy(),
+            composition.ug.copy(),
+            composition.u.copy(),
+            estimate,
+        )
+
+
+def make_controller(
+    name: str,
+    params: ControllerParams,
+    *,
+    sm: np.ndarray,
+    dt_s: float,
+    gravity: GravityModel,
+) -> JointController:
+    """Build one of CONTROLLER_NAMES for n = params.n_joints joints at loop period dt_s.
+
+    sm: Sm of (19), n x n (1-DoF testbed: `controller.model.single_link_sm(I_link)`).
+    gravity: the model whose holding torque the compensator feeds forward ("pid" ignores it).
+    """
+    if name not in CONTROLLER_NAMES:
+        raise ValueError(f"unknown controller {name!r}; expected one of {CONTROLLER_NAMES}")
+    if not isinstance(params, ControllerParams):
+        raise TypeError(f"params must be ControllerParams, got {type(params).__name__}")
+    if not (np.isfinite(dt_s) and dt_s > 0):
+        raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
+    if not isinstance(gravity, GravityModel):
+        raise TypeError(f"gravity must be a controller.gravity.GravityModel, got {type(gravity)}")
+    n = params.n_joints
+    sm = validate_sm(sm, n)
+    probe = np.asarray(gravity.gravity_torque(np.zeros(n)))
+    if probe.shape != (n,):
+        raise ValueError(
+            f"gravity model returns shape {probe.shape} for {n} joints; expected ({n},)"
+        )
+    compensator = GravityCompensator(gravity, params.joints.stiffness_nm_per_rad)
+    if name == "pid":
+        return _FeedForwardController(name, n, None)
+    if name == "gc":
+        return _FeedForwardController(name, n, compensator)
+    gain = params.design_gain(sm, dt_s)
+    return _LqrController(name, params, gain, dt_s, compensator, use_dob=name == "gc+lqr+dob")

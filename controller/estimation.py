@@ -1,0 +1,120 @@
+"""State of (20) from quantised encoders at the loop rate: x = [theta_m; theta_j; dtheta_j].
+
+Sensors: the actuator's motor encoder, 501,923 pulses/rev (H54-200-S500-R e-Manual; quantum
+q_m = 1.2518e-5 rad), and the link encoder, 983,040 counts/rev (RLS RLC2IC resolution code 13 on
+an MR075 ring: 120 poles x 8192; q_j = 6.392e-6 rad). Angles are used as read.
+
+Link velocity: the backward difference v(k) = (theta_j(k) - theta_j(k-1)) / dt, optionally
+low-passed, v_f(k) = beta v_f(k-1) + (1 - beta) v(k), beta = exp(-2 pi fc dt).
+Why the plain difference by default: it has only half a tick of lag, which the discrete LQR
+tolerates (tests/test_controller_closed_loop.py includes it in the sampled loop), and at this
+link resolution its noise is small. The noise, with eps the quantisation error of each sample
+(|eps| <= q/2 when rounding, 0 <= eps < q when truncating; uniform, variance q^2/12):
+
+    difference:  |noise| < q / dt                       rms q / (dt sqrt 6)
+    low-passed:  |noise| < (1 - beta) q / dt            rms (1 - beta) q / (dt sqrt(6 (1 + beta)))
+
+At 200 Hz: link 1.28e-3 rad/s worst case, 5.2e-4 rad/s rms. In the LQR the velocity enters as
+the increment d dtheta_j, whose sum over ticks telescopes, so the goal carries the velocity
+gain times this noise (not its integral): at most 0.33 rad/(rad/s) x 1.28e-3 rad/s = 4e-4 rad
+for a 2 kg m^2 link, much less for lighter ones (the gain falls with the inertia).
+
+Deflection theta_j - theta_m (sign as `drivers.joint_bus.JointSample`): error < (q_m + q_j) / 2
+= 9.5e-6 rad, i.e. 0.019 N m of spring torque at K = 2000 N m/rad.
+
+The derivative-form LQR uses dx(k) = x(k) - x(k-1) (`increment`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+MOTOR_PULSES_PER_REV = 501_923  # H54-200-S500-R, e-Manual "Present Position"
+LINK_COUNTS_PER_REV = 983_040  # RLS RLC2IC (code 13: 8192 counts/pole) on MR075 (120 poles)
+MOTOR_ENCODER_RESOLUTION_RAD = 2.0 * math.pi / MOTOR_PULSES_PER_REV
+LINK_ENCODER_RESOLUTION_RAD = 2.0 * math.pi / LINK_COUNTS_PER_REV
+
+
+def _velocity_filter_pole(cutoff_hz: float | None, dt_s: float) -> float:
+    if cutoff_hz is None:
+        return 0.0
+    if not (np.isfinite(cutoff_hz) and cutoff_hz > 0):
+        raise ValueError(f"link velocity cut-off must be None or > 0 Hz, got {cutoff_hz}")
+    return math.exp(-2.0 * math.pi * cutoff_hz * dt_s)
+
+
+def velocity_noise_bound_rad_s(
+    resolution_rad: float, dt_s: float, cutoff_hz: float | None = None
+) -> float:
+    """Worst-case quantisation noise of the (filtered) difference velocity: (1 - beta) q / dt."""
+    return (1.0 - _velocity_filter_pole(cutoff_hz, dt_s)) * resolution_rad / dt_s
+
+
+def velocity_noise_rms_rad_s(
+    resolution_rad: float, dt_s: float, cutoff_hz: float | None = None
+) -> float:
+    """Rms quantisation noise for white uniform errors: (1 - beta) q / (dt sqrt(6 (1 + beta)))."""
+    beta = _velocity_filter_pole(cutoff_hz, dt_s)
+    return (1.0 - beta) * resolution_rad / (dt_s * math.sqrt(6.0 * (1.0 + beta)))
+
+
+class FlexibleJointStateEstimator:
+    """x(k) = [theta_m; theta_j; v_j] and dx(k) = x(k) - x(k-1) for n joints, stacked by quantity.
+
+    Arrays returned are owned by the estimator and overwritten by the next update.
+    """
+
+    def __init__(
+        self, n_joints: int, dt_s: float, link_velocity_cutoff_hz: float | None = None
+    ) -> None:
+        if not (np.isfinite(dt_s) and dt_s > 0):
+            raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
+        self.n_joints = n_joints
+        self.dt_s = float(dt_s)
+        self._beta = _velocity_filter_pole(link_velocity_cutoff_hz, dt_s)
+        self._state = np.zeros(3 * n_joints)
+        self._previous_state = np.zeros(3 * n_joints)
+        self._increment = np.zeros(3 * n_joints)
+        self._link_step = np.zeros(n_joints)
+
+    @property
+    def state(self) -> np.ndarray:
+        return self._state
+
+    @property
+    def increment(self) -> np.ndarray:
+        return self._increment
+
+    @property
+    def link_velocity_rad_s(self) -> np.ndarray:
+        return self._state[2 * self.n_joints :]
+
+    @property
+    def deflection_rad(self) -> np.ndarray:
+        """theta_j - theta_m (positive when the load leads the motor)."""
+        n = self.n_joints
+        return self._state[n : 2 * n] - self._state[:n]
+
+    def reset(self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray) -> None:
+        """Start at rest at the given angles (velocity 0, increment 0)."""
+        n = self.n_joints
+        self._state[:n] = motor_angle_rad
+        self._state[n : 2 * n] = link_angle_rad
+        self._state[2 * n :] = 0.0
+        self._previous_state[:] = self._state
+        self._increment[:] = 0.0
+
+    def update(self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray) -> np.ndarray:
+        """New sample: returns the state x(k); `increment` then holds dx(k)."""
+        n = self.n_joints
+        self._previous_state[:] = self._state
+        np.subtract(link_angle_rad, self._previous_state[n : 2 * n], out=self._link_step)
+        velocity = self._state[2 * n :]
+        velocity *= self._beta
+        velocity += ((1.0 - self._beta) / self.dt_s) * self._link_step
+        self._state[:n] = motor_angle_rad
+        self._state[n : 2 * n] = link_angle_rad
+        np.subtract(self._state, self._previous_state, out=self._increment)
+        return self._state

@@ -1,0 +1,285 @@
+"""LQR tracking controller in derivative form, Kim et al., ICRA 2018, Sec. III-C, (21)-(24).
+
+Continuous design, as in the paper. Differentiating (20) and appending the tracking error
+e = y - theta_d (theta_d slowly varying, d theta_d/dt ~ 0) gives the augmented system (21)
+
+    d/dt [e; dx/dt] = [[0, C], [0, A]] [e; dx/dt] + [[0], [B]] duc/dt,
+
+the cost (22) J = int e' Qe e + (dx/dt)' Qx (dx/dt) + (duc/dt)' R (duc/dt) dt, the Riccati
+equation (23) A'S + SA - S B R^-1 B'S + Q = 0 and the feedback (24) duc/dt = -R^-1 B'S [e; dx/dt].
+
+Discrete design, what the loop runs (as the lab's code does, reference note sec. 1). With the
+plant sampled at the loop period, x(k+1) = Ad x(k) + Bd u(k), the increments
+dx(k) = x(k) - x(k-1) and duc(k) = uc(k) - uc(k-1) obey dx(k+1) = Ad dx(k) + Bd duc(k), and
+e(k+1) = e(k) + C dx(k+1) for a constant reference, so
+
+    [e; dx](k+1) = [[I, C Ad], [0, Ad]] [e; dx](k) + [[C Bd], [Bd]] duc(k),
+
+with the same weights per tick; scipy.linalg.solve_discrete_are gives P and
+duc(k) = -(R + B'PB)^-1 B'PA [e(k); dx(k)]. uc is the running sum of duc: the error weight
+makes it an integral controller (gain per tick on e, i.e. an integral gain of error_gain / dt).
+
+Why not the continuous gain at 200 Hz: its fastest closed-loop pole lies at -4,000 rad/s
+(Qx = I) or -12,700 rad/s (Q = 10 I) for I_link = 0.25 kg m^2, far beyond pi/dt = 628 rad/s;
+implemented as duc(k) = dt * duc/dt it is unstable (tests/test_controller_closed_loop.py shows
+the sampled poles). The continuous design stays for analysis.
+
+Weights. The paper (Sec. IV-A): "Q and R ... are the diagonal matrix of 10 and 1". We read it
+as the lab's code does: Qe = 10 I on the error, Qx = 1 I on the state increments, R = 1 I
+(`LqrWeights()` defaults). The other reading, Q = 10 I on all 4n states, is
+`LqrWeights(state_increment_weight=10.0)`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.linalg
+
+from controller.model import (
+    Discretisation,
+    FlexibleJointParams,
+    discretise,
+    flexible_joint_state_space,
+    validate_sm,
+)
+
+Coupling = Literal["full", "diagonal"]
+COUPLINGS: tuple[str, ...] = ("full", "diagonal")
+
+
+@dataclass(frozen=True)
+class LqrWeights:
+    """Cost weights of (22), each times an identity matrix.
+
+    tracking_error_weight: Qe on e [1/rad^2] (> 0); state_increment_weight: Qx on the state
+    increments (>= 0); input_increment_weight: R on the input increment (> 0). Defaults: the
+    paper's "10 and 1" as the lab coded them (Qe = 10 I, Qx = I, R = I).
+    """
+
+    tracking_error_weight: float = 10.0
+    state_increment_weight: float = 1.0
+    input_increment_weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.tracking_error_weight) and self.tracking_error_weight > 0):
+            raise ValueError(
+                f"tracking_error_weight must be finite and > 0, got {self.tracking_error_weight}"
+            )
+        if not (np.isfinite(self.state_increment_weight) and self.state_increment_weight >= 0):
+            raise ValueError(
+                f"state_increment_weight must be finite and >= 0, got {self.state_increment_weight}"
+            )
+        if not (np.isfinite(self.input_increment_weight) and self.input_increment_weight > 0):
+            raise ValueError(
+                f"input_increment_weight must be finite and > 0, got {self.input_increment_weight}"
+            )
+
+    def matrices(self, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+        """Q = blockdiag(Qe (n), Qx (3n)) and R (n) for n joints."""
+        q = np.diag(
+            np.concatenate(
+                [
+                    np.full(n_joints, self.tracking_error_weight),
+                    np.full(3 * n_joints, self.state_increment_weight),
+                ]
+            )
+        )
+        r = self.input_increment_weight * np.eye(n_joints)
+        return q, r
+
+
+@dataclass(frozen=True)
+class LqrSolution:
+    """gain K, Riccati solution S (or P) and the eigenvalues of the designed closed loop."""
+
+    gain: np.ndarray
+    riccati: np.ndarray
+    closed_loop_eigenvalues: np.ndarray
+
+
+def _check_lqr_arguments(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
+    """Shapes and definiteness, as python-control's lqr/dlqr check them."""
+    if a.ndim != 2 or a.shape[0] != a.shape[1]:
+        raise ValueError(f"A must be square, got shape {a.shape}")
+    n_states = a.shape[0]
+    if b.ndim != 2 or b.shape[0] != n_states:
+        raise ValueError(f"B must have {n_states} rows (as A), got shape {b.shape}")
+    n_inputs = b.shape[1]
+    if q.shape != (n_states, n_states):
+        raise ValueError(f"Q must be {n_states} x {n_states}, got {q.shape}")
+    if r.shape != (n_inputs, n_inputs):
+        raise ValueError(f"R must be {n_inputs} x {n_inputs}, got {r.shape}")
+    for name, matrix in (("A", a), ("B", b), ("Q", q), ("R", r)):
+        if not np.all(np.isfinite(matrix)):
+            raise ValueError(f"{name} must be finite")
+    if not np.allclose(q, q.T) or not np.allclose(r, r.T):
+        raise ValueError("Q and R must be symmetric")
+    q_scale = max(1.0, float(np.max(np.abs(q))))
+    if np.min(np.linalg.eigvalsh(q)) < -1e-12 * q_scale:
+        raise ValueError("Q must be positive semi-definite")
+    if np.min(np.linalg.eigvalsh(r)) <= 0:
+        raise ValueError("R must be positive definite")
+
+
+def continuous_lqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> LqrSolution:
+    """(23)-(24): S from A'S + SA - S B R^-1 B'S + Q = 0, K = R^-1 B'S, eig(A - B K)."""
+    _check_lqr_arguments(a, b, q, r)
+    try:
+        riccati = scipy.linalg.solve_continuous_are(a, b, q, r)
+    except (np.linalg.LinAlgError, ValueError) as error:
+        raise ValueError(
+            f"no stabilising continuous Riccati solution ((A, B) not stabilisable or "
+            f"(A, Q) has unobservable modes on the imaginary axis): {error}"
+        ) from error
+    gain = np.linalg.solve(r, b.T @ riccati)
+    return LqrSolution(gain, riccati, np.linalg.eigvals(a - b @ gain))
+
+
+def discrete_lqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> LqrSolution:
+    """P from A'PA - P - A'PB (R + B'PB)^-1 B'PA + Q = 0, K = (R + B'PB)^-1 B'PA, eig(A - B K)."""
+    _check_lqr_arguments(a, b, q, r)
+    try:
+        riccati = scipy.linalg.solve_discrete_are(a, b, q, r)
+    except (np.linalg.LinAlgError, ValueError) as error:
+        raise ValueError(
+            f"no stabilising discrete Riccati solution ((A, B) not stabilisable or "
+            f"(A, Q) has unobservable modes on the unit circle): {error}"
+        ) from error
+    gain = np.linalg.solve(r + b.T @ riccati @ b, b.T @ riccati @ a)
+    return LqrSolution(gain, riccati, np.linalg.eigvals(a - b @ gain))
+
+
+def augmented_continuous(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(21): A_bar = [[0, C], [0, A]], B_bar = [[0], [B]] on the state [e; dx/dt]."""
+    n_outputs, n_states = c.shape
+    n_inputs = b.shape[1]
+    a_bar = np.block([[np.zeros((n_outputs, n_outputs)), c], [np.zeros((n_states, n_outputs)), a]])
+    b_bar = np.vstack([np.zeros((n_outputs, n_inputs)), b])
+    return a_bar, b_bar
+
+
+def augmented_discrete(
+    a_d: np.ndarray, b_d: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A_aug = [[I, C Ad], [0, Ad]], B_aug = [[C Bd], [Bd]] on the state [e(k); dx(k)]."""
+    n_outputs, n_states = c.shape
+    a_aug = np.block([[np.eye(n_outputs), c @ a_d], [np.zeros((n_states, n_outputs)), a_d]])
+    b_aug = np.vstack([c @ b_d, b_d])
+    return a_aug, b_aug
+
+
+@dataclass(frozen=True)
+class TrackingGain:
+    """duc(k) = -(error_gain e(k) + state_increment_gain dx(k)), per tick.
+
+    error_gain: n x n [rad of input per tick per rad of error]; state_increment_gain: n x 3n on
+    dx = [d theta_m; d theta_j; d dtheta_j]. `spectral_radius`: of the designed nominal closed
+    loop A_aug - B_aug K (NaN when the gain was not designed on a discrete model).
+    """
+
+    error_gain: np.ndarray
+    state_increment_gain: np.ndarray
+    dt_s: float
+    spectral_radius: float
+
+    def __post_init__(self) -> None:
+        n = self.error_gain.shape[0]
+        if self.error_gain.shape != (n, n) or self.state_increment_gain.shape != (n, 3 * n):
+            raise ValueError(
+                f"error_gain must be n x n and state_increment_gain n x 3n, got "
+                f"{self.error_gain.shape} and {self.state_increment_gain.shape}"
+            )
+        for gain in (self.error_gain, self.state_increment_gain):
+            gain.flags.writeable = False
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.error_gain.shape[0])
+
+    @property
+    def stacked(self) -> np.ndarray:
+        """[error_gain, state_increment_gain]: n x 4n on [e; dx]."""
+        return np.hstack([self.error_gain, self.state_increment_gain])
+
+
+def design_continuous_tracking_lqr(
+    params: FlexibleJointParams, sm: np.ndarray, weights: LqrWeights
+) -> LqrSolution:
+    """The paper's design: (21)-(24) on the continuous model (20). Gain is n x 4n on [e; dx/dt]."""
+    system = flexible_joint_state_space(params, sm)
+    a_bar, b_bar = augmented_continuous(system.a, system.b, system.c)
+    q, r = weights.matrices(params.n_joints)
+    return continuous_lqr(a_bar, b_bar, q, r)
+
+
+def sample_continuous_gain(solution: LqrSolution, dt_s: float) -> TrackingGain:
+    """The continuous gain run at period dt_s: duc(k) = dt * duc/dt with dx/dt ~ dx(k) / dt.
+
+    This is what "the paper's gain at 200 Hz" means; it is kept for analysis only (unstable).
+    """
+    n = solution.gain.shape[0]
+    return TrackingGain(
+        error_gain=solution.gain[:, :n] * dt_s,
+        state_increment_gain=solution.gain[:, n:].copy(),
+        dt_s=float(dt_s),
+        spectral_radius=float("nan"),
+    )
+
+
+def _design_discrete_coupled(
+    params: FlexibleJointParams,
+    sm: np.ndarray,
+    dt_s: float,
+    weights: LqrWeights,
+    method: Discretisation,
+) -> tuple[np.ndarray, float]:
+    system = discretise(flexible_joint_state_space(params, sm), dt_s, method)
+    a_aug, b_aug = augmented_discrete(system.a, system.b, system.c)
+    q, r = weights.matrices(params.n_joints)
+    solution = discrete_lqr(a_aug, b_aug, q, r)
+    return solution.gain, float(np.max(np.abs(solution.closed_loop_eigenvalues)))
+
+
+def design_discrete_tracking_lqr(
+    params: FlexibleJointParams,
+    sm: np.ndarray,
+    dt_s: float,
+    weights: LqrWeights | None = None,
+    method: Discretisation = "zoh",
+    coupling: Coupling = "full",
+) -> TrackingGain:
+    """The gain the loop runs: the discrete derivative-form LQR at period dt_s.
+
+    method: "zoh" (exact sampling of (20) for a goal held over the tick; default) or "euler"
+    (the lab's forward Euler; see `controller.model.discretise` for where it breaks down).
+    coupling: "full" solves one 4n-state problem with the whole Sm; "diagonal" keeps only the
+    diagonal of Sm (as the lab's code does), solves n independent 4-state problems and stacks
+    them (each gain block is then diagonal). With a diagonal Sm both give the same gain.
+    """
+    weights = weights if weights is not None else LqrWeights()
+    n = params.n_joints
+    sm = validate_sm(sm, n)
+    if coupling == "full":
+        gain, radius = _design_discrete_coupled(params, sm, dt_s, weights, method)
+    elif coupling == "diagonal":
+        gain = np.zeros((n, 4 * n))
+        radius = 0.0
+        for joint in range(n):
+            joint_gain, joint_radius = _design_discrete_coupled(
+                params.joint(joint), sm[joint : joint + 1, joint : joint + 1], dt_s, weights, method
+            )
+            # 1-joint gain is [e, theta_m, theta_j, dtheta_j]; place it in the stacked layout.
+            for block in range(4):
+                gain[joint, block * n + joint] = joint_gain[0, block]
+            radius = max(radius, joint_radius)
+    else:
+        raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
+    return TrackingGain(
+        error_gain=gain[:, :n].copy(),
+        state_increment_gain=gain[:, n:].copy(),
+        dt_s=float(dt_s),
+        spectral_radius=radius,
+    )

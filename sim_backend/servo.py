@@ -1,0 +1,235 @@
+"""The H54-200-S500-R's own position servo and overload protection, as its firmware would run them.
+
+The e-Manual documents the loop structure (Position P Gain 594 -> Velocity P/I Gain 588/586 ->
+current, capped by Goal Torque 604 or Torque Limit 30, speed capped by Goal Velocity 600 or
+Velocity Limit 32) but not the gains' physical units. We model the cascade in SI and scale each
+gain linearly with its register, the register's factory default mapping to the SI default below:
+
+    velocity command  w* = Kpp (theta_goal - theta_m), clipped to the speed cap
+    motor torque      tau = kv (w* - dtheta_m) + kv/Ti * integral(w* - dtheta_m), clipped to the
+                      current cap times the torque constant (anti-windup: no integration while
+                      clipped)
+
+Why these defaults (assumptions, documented in `H54ServoParams`):
+- Kpp = 10 1/s: Kim et al. identified the stock actuator as a first-order lag with Kp = 10 1/s;
+  with a fast inner velocity loop the cascade's position response is that lag.
+- kv: the firmware tunes its velocity loop for the bare motor (the factory cannot know the
+  load): a 50 Hz velocity bandwidth on the reflected rotor inertia. With Kpp this gives a static
+  servo stiffness Kpp * kv = 785 N m/rad at the output.
+- Ti: the stock velocity I gain is weak: its register (14) against the P gain (399) is ~30 times
+  weaker than the X series' defaults; with the X series' gain scaling (KVP = reg/128,
+  KVI = reg/65536) and a 1 kHz velocity loop it is Ti = 14.6 s. The paper's contact experiment
+  corroborates a weak integral: its DOB stayed compliant, which needs the servo's finite static
+  stiffness (the DOB senses a load only through the servo's position lag). Strong integral
+  action would wind the lag out and defeat the DOB (`hil` reports this sensitivity).
+Because of the velocity loop, the friction and the limits, the plant differs from the paper's
+nominal first-order model as real hardware does.
+
+Overload (Hardware Error Status bit 5): ROBOTIS does not publish the threshold. Our model, as the
+brief suggests: an overload timer runs while |current| >= `overload_current_fraction` of the active
+current cap and runs back down (at the same rate) below it; at `overload_trip_time_s` the firmware
+raises the Overload bit, which with the default Shutdown mask clears Torque Enable, engages the
+dynamic brake and sets the Alert bit until REBOOT (e-Manual, "Shutdown").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+OVERLOAD_BIT = 0x20
+
+# Control-table units of the H54-200-S500-R (e-Manual; also in drivers/, converted there for the
+# host side - the emulator converts on its own side of the wire).
+PULSES_PER_REV = 501_923
+RAD_PER_PULSE = 2.0 * math.pi / PULSES_PER_REV
+RPM_PER_VELOCITY_UNIT = 0.00199234
+RAD_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT * 2.0 * math.pi / 60.0
+AMPERE_PER_CURRENT_UNIT = 33.0 / 2048.0  # 16.11328 mA
+POSITION_MODE, EXTENDED_POSITION_MODE, VELOCITY_MODE, TORQUE_MODE = 3, 4, 1, 0
+
+
+class ControlTable(Protocol):
+    """The firmware's view of its control table (sim_backend.dynamixel.H54Device provides it)."""
+
+    def item(self, name: str) -> int: ...
+
+    def set_item(self, name: str, value: int) -> None: ...
+
+    def raise_hardware_error(self, bits: int) -> None: ...
+
+    @property
+    def torque_enabled(self) -> bool: ...
+
+
+@dataclass(frozen=True)
+class H54ServoParams:
+    """SI figures of the emulated firmware. Register defaults map onto these values."""
+
+    position_gain_per_s: float = 10.0  # Kim et al. Sec. IV-A (nominal Kp); register 594 = 32
+    velocity_gain_nms_per_rad: float = 78.5  # 2 pi 50 Hz x 0.25 kg m^2; register 588 = 399
+    velocity_integral_time_s: float = 15.0  # weak integral action; register 586 = 14
+    torque_constant_nm_per_a: float = 44.7 / 9.3  # continuous torque / current (e-Manual spec)
+    dynamic_brake_damping_nms_per_rad: float = 40.0  # shorted windings: Kt^2 / R, R ~ 0.6 ohm
+    current_noise_a: float = 0.0  # rms noise on Present Current (0: off)
+    overload_current_fraction: float = 0.9
+    overload_trip_time_s: float = 1.5
+    temperature_c: float = 35.0
+    input_voltage_v: float = 24.0
+    default_position_gain_register: int = 32
+    default_velocity_p_gain_register: int = 399
+    default_velocity_i_gain_register: int = 14
+
+    def __post_init__(self) -> None:
+        for name in (
+            "position_gain_per_s",
+            "velocity_gain_nms_per_rad",
+            "torque_constant_nm_per_a",
+            "overload_trip_time_s",
+        ):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"servo parameter {name} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.overload_current_fraction <= 1:
+            raise ValueError("overload_current_fraction must be in (0, 1]")
+
+
+@dataclass
+class ServoOutput:
+    """What the firmware asks of the motor this physics step."""
+
+    torque_on: bool
+    velocity_command_rad_s: float  # the implicit velocity-loop input (includes the I term)
+    torque_limit_nm: float
+
+
+class H54Firmware:
+    """Runs one actuator's servo and protection every physics step against its control table."""
+
+    def __init__(self, table: ControlTable, params: H54ServoParams) -> None:
+        self.table = table
+        self.params = params
+        self.integral_nm = 0.0
+        self.overload_timer_s = 0.0
+        self.last_current_a = 0.0
+
+    def on_reboot(self) -> None:
+        self.integral_nm = 0.0
+        self.overload_timer_s = 0.0
+
+    # --- gains from registers ----------------------------------------------------------------
+    def _position_gain(self) -> float:
+        p = self.params
+        return (
+            p.position_gain_per_s
+            * self.table.item("Position P Gain")
+            / (p.default_position_gain_register)
+        )
+
+    def velocity_gain(self) -> float:
+        p = self.params
+        return (
+            p.velocity_gain_nms_per_rad
+            * self.table.item("Velocity P Gain")
+            / (p.default_velocity_p_gain_register)
+        )
+
+    def _integral_rate(self) -> float:
+        """kv / Ti in N m per rad (torque added per radian of integrated speed error)."""
+        p = self.params
+        nominal = p.velocity_gain_nms_per_rad / p.velocity_integral_time_s
+        return nominal * self.table.item("Velocity I Gain") / p.default_velocity_i_gain_register
+
+    def current_cap_a(self) -> float:
+        goal_torque = abs(self.table.item("Goal Torque"))
+        limit = self.table.item("Torque Limit")
+        units = goal_torque if 0 < goal_torque <= limit else limit
+        return units * AMPERE_PER_CURRENT_UNIT
+
+    def speed_cap_rad_s(self) -> float:
+        goal_velocity = abs(self.table.item("Goal Velocity"))
+        limit = self.table.item("Velocity Limit")
+        units = goal_velocity if 0 < goal_velocity <= limit else limit
+        return units * RAD_S_PER_VELOCITY_UNIT
+
+    def goal_angle_rad(self) -> float:
+        pulses = self.table.item("Goal Position") + self.table.item("Homing Offset")
+        return pulses * RAD_PER_PULSE
+
+    # --- one physics step --------------------------------------------------------------------
+    def compute(
+        self, motor_angle_rad: float, motor_velocity_rad_s: float, dt_s: float
+    ) -> ServoOutput:
+        """The velocity-loop input and torque cap for this step (position modes only)."""
+        if not self.table.torque_enabled:
+            self.integral_nm = 0.0
+            return ServoOutput(False, 0.0, 0.0)
+        torque_cap = self.current_cap_a() * self.params.torque_constant_nm_per_a
+        kv = self.velocity_gain()
+        mode = self.table.item("Operating Mode")
+        if mode in (POSITION_MODE, EXTENDED_POSITION_MODE):
+            speed_cap = self.speed_cap_rad_s()
+            position_error = self.goal_angle_rad() - motor_angle_rad
+            speed_command = max(-speed_cap, min(speed_cap, self._position_gain() * position_error))
+        elif mode == VELOCITY_MODE:
+            speed_command = self.table.item("Goal Velocity") * RAD_S_PER_VELOCITY_UNIT
+        else:  # torque mode: the current loop follows Goal Torque directly
+            torque = self.table.item("Goal Torque") * AMPERE_PER_CURRENT_UNIT
+            torque *= self.params.torque_constant_nm_per_a
+            return ServoOutput(True, motor_velocity_rad_s + torque / kv, torque_cap)
+        speed_error = speed_command - motor_velocity_rad_s
+        proportional = kv * speed_error
+        # Anti-windup: integrate only while the output is not clipped (or is unwinding).
+        unclipped = proportional + self.integral_nm
+        if abs(unclipped) < torque_cap or (unclipped * speed_error) < 0:
+            self.integral_nm += self._integral_rate() * speed_error * dt_s
+            self.integral_nm = max(-torque_cap, min(torque_cap, self.integral_nm))
+        return ServoOutput(True, speed_command + self.integral_nm / kv, torque_cap)
+
+    def report(
+        self,
+        motor_torque_nm: float,
+        motor_angle_rad: float,
+        motor_velocity_rad_s: float,
+        dt_s: float,
+        current_noise_a: float = 0.0,
+    ) -> None:
+        """Write the Present* items after a physics step and run the overload protection."""
+        p = self.params
+        current_a = motor_torque_nm / p.torque_constant_nm_per_a + current_noise_a
+        self.last_current_a = current_a
+        table = self.table
+        table.set_item(
+            "Present Position",
+            _round_to_int32(motor_angle_rad / RAD_PER_PULSE - table.item("Homing Offset")),
+        )
+        table.set_item(
+            "Present Velocity", _round_to_int32(motor_velocity_rad_s / RAD_S_PER_VELOCITY_UNIT)
+        )
+        table.set_item("Present Current", _clamp_int16(round(current_a / AMPERE_PER_CURRENT_UNIT)))
+        table.set_item("Present Temperature", round(p.temperature_c))
+        table.set_item("Present Input Voltage", round(p.input_voltage_v * 10))
+        moving = (
+            abs(motor_velocity_rad_s) > table.item("Moving Threshold") * RAD_S_PER_VELOCITY_UNIT
+        )
+        table.set_item("Moving", int(moving))
+        self._run_overload_protection(abs(current_a), dt_s)
+
+    def _run_overload_protection(self, current_a: float, dt_s: float) -> None:
+        if not self.table.torque_enabled:
+            self.overload_timer_s = 0.0
+            return
+        near_limit = current_a >= self.params.overload_current_fraction * self.current_cap_a()
+        self.overload_timer_s += dt_s if near_limit else -dt_s
+        self.overload_timer_s = max(0.0, self.overload_timer_s)
+        if self.overload_timer_s >= self.params.overload_trip_time_s:
+            self.table.raise_hardware_error(OVERLOAD_BIT)
+            self.overload_timer_s = 0.0
+
+
+def _round_to_int32(value: float) -> int:
+    return max(-(2**31), min(2**31 - 1, round(value)))
+
+
+def _clamp_int16(value: int) -> int:
+    return max(-32768, min(32767, value))

@@ -1,0 +1,131 @@
+"""The virtual testbed's physics: one MuJoCo plant per joint, each behind its H54 firmware.
+
+This module knows nothing of buses: the bus emulators read what the devices would measure
+(`motor_device_pulses` via the control table, `link_angle_rad` for the encoder, the contact
+force for the force sensor) and the firmware reads its goals from the control table.
+
+Mounting: the device frame of an actuator or encoder differs from the physical frame by a
+direction and a zero offset (where the device reads zero). The same figures are in the
+configuration file, so the host's drivers undo exactly what the emulated mounting does.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim_backend.plant import TestbedPlant, TestbedPlantParams
+from sim_backend.scenario import PushEvent
+from sim_backend.servo import ControlTable, H54Firmware, H54ServoParams
+
+
+@dataclass(frozen=True)
+class Mounting:
+    """device_angle = direction * (physical_angle + offset_rad)."""
+
+    direction: int = 1
+    offset_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.direction not in (1, -1):
+            raise ValueError(f"mounting direction must be +1 or -1, got {self.direction}")
+
+    def to_device(self, physical: float) -> float:
+        return self.direction * (physical + self.offset_rad)
+
+    def to_physical(self, device: float) -> float:
+        return self.direction * device - self.offset_rad
+
+
+class EmulatedJoint:
+    """One actuator + elastic gear + link: a plant driven by its firmware."""
+
+    def __init__(
+        self,
+        table: ControlTable,
+        plant_params: TestbedPlantParams,
+        servo_params: H54ServoParams,
+        *,
+        motor_mounting: Mounting = Mounting(),
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        self.table = table
+        self.firmware = H54Firmware(table, servo_params)
+        self.plant = TestbedPlant(plant_params, servo_params.velocity_gain_nms_per_rad)
+        self.motor_mounting = motor_mounting
+        self.pushes: list[PushEvent] = []
+        self._rng = rng or np.random.default_rng(0)
+        self._dt = plant_params.physics_timestep_s
+        self._torque_was_on = False
+        # The device starts holding where it stands (a powered-up servo's goal is its position).
+        self._report()
+        table.set_item("Goal Position", table.item("Present Position"))
+
+    def on_reboot(self) -> None:
+        self.firmware.on_reboot()
+        self._report()
+        self.table.set_item("Goal Position", self.table.item("Present Position"))
+
+    def step(self, scenario_time_s: float) -> None:
+        """One physics step: firmware -> motor -> MuJoCo -> Present* items and protection."""
+        plant = self.plant
+        mount = self.motor_mounting
+        device_angle = mount.to_device(plant.motor_angle_rad)
+        device_velocity = mount.direction * plant.motor_velocity_rad_s
+        out = self.firmware.compute(device_angle, device_velocity, self._dt)
+        if out.torque_on:
+            if not self._torque_was_on:
+                plant.release_brake()
+            plant.set_servo(mount.direction * out.velocity_command_rad_s, out.torque_limit_nm)
+        else:
+            plant.set_torque_off(self.firmware.params.dynamic_brake_damping_nms_per_rad)
+        self._torque_was_on = out.torque_on
+        plant.set_external_force(sum(p.force_at(scenario_time_s) for p in self.pushes))
+        plant.step()
+        self._report()
+
+    def _report(self) -> None:
+        noise_rms = self.firmware.params.current_noise_a
+        noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
+        mount = self.motor_mounting
+        self.firmware.report(
+            mount.direction * self.plant.motor_torque_nm,
+            mount.to_device(self.plant.motor_angle_rad),
+            mount.direction * self.plant.motor_velocity_rad_s,
+            self._dt,
+            current_noise_a=noise,
+        )
+
+
+class VirtualTestbed:
+    """All emulated joints on one physics clock.
+
+    `advance(period_s)` runs whole physics steps; in lock-step mode the emulator calls it once per
+    CAN SYNC with the loop period, in real-time mode with the elapsed wall time.
+    """
+
+    def __init__(self, joints: Sequence[EmulatedJoint]) -> None:
+        if not joints:
+            raise ValueError("a virtual testbed needs at least one joint")
+        self.joints = list(joints)
+        self._dt = joints[0].plant.params.physics_timestep_s
+        self.scenario_time_s = 0.0
+        self._carry_s = 0.0
+
+    @property
+    def physics_timestep_s(self) -> float:
+        return self._dt
+
+    def advance(self, duration_s: float) -> int:
+        """Advance by whole physics steps covering duration_s (remainders carry over)."""
+        total = self._carry_s + duration_s
+        steps = int(math.floor(total / self._dt + 1e-9))
+        self._carry_s = total - steps * self._dt
+        for _ in range(steps):
+            for joint in self.joints:
+                joint.step(self.scenario_time_s)
+            self.scenario_time_s += self._dt
+        return steps
