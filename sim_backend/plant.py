@@ -132,7 +132,8 @@ def build_mjcf(params: TestbedPlantParams, velocity_gain_nms_per_rad: float) -> 
       <joint name="motor" type="hinge" axis="{axis}" armature="{p.motor_reflected_inertia_kg_m2}"
              damping="{p.gearbox_viscous_friction_nms_per_rad}"
              frictionloss="{p.gearbox_coulomb_friction_nm}"/>
-      <inertial pos="0 0 0" mass="0.01" diaginertia="{rotor_inertia} {rotor_inertia} {rotor_inertia}"/>
+      <inertial pos="0 0 0" mass="0.01"
+                diaginertia="{rotor_inertia} {rotor_inertia} {rotor_inertia}"/>
       <body name="link">
         <joint name="gear" type="hinge" axis="{axis}" stiffness="{p.gear_stiffness_nm_per_rad}"
                damping="{p.gear_damping_nms_per_rad}" springref="0"/>
@@ -149,8 +150,8 @@ def build_mjcf(params: TestbedPlantParams, velocity_gain_nms_per_rad: float) -> 
   </worldbody>
   <actuator>
     <general name="servo_velocity_loop" joint="motor" gainprm="{velocity_gain_nms_per_rad}"
-             biastype="affine" biasprm="0 0 {-velocity_gain_nms_per_rad}" ctrllimited="false" forcelimited="true"
-             forcerange="-1000 1000"/>
+             biastype="affine" biasprm="0 0 {-velocity_gain_nms_per_rad}"
+             ctrllimited="false" forcelimited="true" forcerange="-1000 1000"/>
   </actuator>
 </mujoco>
 """
