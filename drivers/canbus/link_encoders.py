@@ -1,0 +1,638 @@
+"""Link encoders (CiA 406) and an optional force sensor (CiA 404) on CAN, read by SYNC -> TPDO.
+
+Each tick the loop calls `send_sync()` (the SYNC frame 0x080 goes on the bus at once; every
+node latches its value now) and then `collect(timeout_s)`, which reads the answering TPDOs
+straight from the python-can bus with `bus.recv` up to the deadline and returns as soon as every
+node has answered. No background thread decides what `collect()` returns, so a lock-step
+experiment is deterministic. Frames that arrive before the SYNC (a TPDO too late for the
+previous tick, heartbeats) are taken off the bus by `send_sync()` first, so a reading only
+holds answers to THIS SYNC.
+
+`open()` brings each node up with `canopen` (NMT and SDO; a python-can Notifier runs only
+during this configuration phase, because canopen's SDO client waits for its answers on a
+queue):
+  1. NMT reset communication, wait for the boot-up frame 0x700+id [00];
+  2. check 0x1000 device type: low 16 bits 0x0196 (CiA 406) for an encoder, 0x0194 (CiA 404)
+     for the force sensor; an encoder must report 0x6001 = the configured counts_per_rev;
+     the force sensor's unit (0x6131:01) must be newton, 0x6132:01 gives its decimal digits;
+  3. check the TPDO mapping (first object 0x60040020 position value, or 0x91300120 AI PV),
+     enable the TPDO if its COB-ID is marked invalid, set transmission type 1 (every SYNC);
+  4. set the producer heartbeat time 0x1017, NMT start, and wait for a heartbeat that says
+     Operational (0x05).
+Every failure names the node, the bus, and what was expected.
+
+Timing: `collect()` returns within `timeout_s` plus the interface's receive granularity
+(python-can's slcan polls its serial port with a 1 ms timeout by default, so up to ~1.5 ms
+late was measured; `virtual` is prompt). In-process lock-step: send_sync(), then pump the
+emulated nodes, then collect(). An emulator that only advances its clock on SYNC still lets
+open() finish: the nodes answer NMT and SDO at once and announce a state change by heartbeat.
+
+Units: counts -> radians in `units.link_angle_rad_from_counts` and PV -> N in
+`units.force_n_from_counts`, nowhere else. The TPDO bytes are decoded as a little-endian INTEGER32
+(CiA 406 v3.2; an UNSIGNED32 device sends the same bits), so negative link angles are negative.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import math
+import struct
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+
+import can
+import canopen
+import numpy as np
+from canopen.nmt import NMT_STATES
+
+from drivers.canbus.config import ForceSensorConfig, LinkEncoderConfig
+from drivers.canbus.object_dictionary import (
+    TPDO_COMMUNICATION_BASE,
+    TPDO_MAPPING_BASE,
+    sensor_object_dictionary,
+)
+from drivers.canbus.readings import ForceReading, LinkReading
+from drivers.canbus.units import force_n_from_counts, link_angle_rad_from_counts
+from drivers.joint_bus import BusError
+
+CIA406_ENCODER_PROFILE = 0x0196
+CIA404_MEASURING_DEVICE_PROFILE = 0x0194
+CIA406_SINGLE_TURN_ABSOLUTE = 0x0001  # 0x1000 bits 16-31: the count wraps once per turn
+POSITION_VALUE_MAPPING = 0x6004_0020  # 0x6004 position value, 32 bits
+AI_PROCESS_VALUE_MAPPING = 0x9130_0120  # 0x9130:01 AI input PV, 32 bits
+CIA303_NEWTON = 0x21  # unit code in byte 2 of 0x6131 (CiA 303-2)
+
+_NMT_RESET_COMMUNICATION = 0x82
+_NMT_START = 0x01
+_NMT_STOP = 0x02
+_NMT_ENTER_PRE_OPERATIONAL = 0x80
+_HEARTBEAT_OPERATIONAL = 0x05
+_HEARTBEAT_BOOTUP = 0x00
+_HEARTBEAT_PRE_OPERATIONAL = 0x7F
+_PDO_COB_ID_INVALID = 1 << 31
+_STANDARD_ID_MASK = 0x7FF
+_HEARTBEAT_BASE = 0x700
+_TPDO_COB_ID_BASES = (0x180, 0x280, 0x380, 0x480)
+_INT32 = struct.Struct("<i")
+_UNKNOWN_STATE = 0xFF
+_NOTIFIER_POLL_S = 0.005
+_MAX_FRAMES_PER_DRAIN = 1024
+
+
+class CanDeviceError(BusError):
+    """A CAN sensor node could not be opened or read (the message names node and bus)."""
+
+
+@dataclass
+class _Device:
+    """One node as the reader knows it (configuration plus what open() learned)."""
+
+    label: str
+    config: LinkEncoderConfig | ForceSensorConfig
+    node: canopen.RemoteNode
+    tpdo_cob_id: int = 0
+    single_turn: bool = False
+    newtons_per_count: float = 1.0
+
+    @property
+    def is_encoder(self) -> bool:
+        return isinstance(self.config, LinkEncoderConfig)
+
+
+class LinkEncoderReader:
+    """Reads the link encoders (and the optional force sensor) on one CAN bus; see module doc.
+
+    bus: a python-can bus, built by the caller from configuration; the reader owns it from
+    now on and shuts it down in `close()`.
+    clock: the time base of `sync_time_s`, ages and heartbeat timing (default
+    time.monotonic; a lock-step loop passes its simulated clock so the data are deterministic).
+    Deadlines (`collect`'s timeout, open's waits) always use real time.
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        encoders: Sequence[LinkEncoderConfig],
+        *,
+        force_sensor: ForceSensorConfig | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        bus_description: str | None = None,
+        sdo_timeout_s: float = 0.3,
+        boot_timeout_s: float = 1.0,
+        heartbeat_timeout_factor: float = 3.0,
+    ) -> None:
+        configs: list[LinkEncoderConfig | ForceSensorConfig] = list(encoders)
+        if not configs:
+            raise ValueError("LinkEncoderReader needs at least one LinkEncoderConfig")
+        if force_sensor is not None:
+            configs.append(force_sensor)
+        node_ids = [config.node_id for config in configs]
+        if len(set(node_ids)) != len(node_ids):
+            raise ValueError(f"CAN sensor node IDs must be distinct, got {node_ids}")
+        if heartbeat_timeout_factor <= 1.0:
+            raise ValueError(
+                "heartbeat_timeout_factor must be > 1 (missed beats tolerated), "
+                f"got {heartbeat_timeout_factor}"
+            )
+        self._bus = bus
+        self._clock = clock
+        self.bus_description = bus_description or f"{type(bus).__name__} ({bus.channel_info})"
+        self._sdo_timeout_s = sdo_timeout_s
+        self._boot_timeout_s = boot_timeout_s
+        self._network = canopen.Network(bus)  # no connect(): we own the receive path
+        self._object_dictionary = sensor_object_dictionary()
+        self.encoder_configs: tuple[LinkEncoderConfig, ...] = tuple(encoders)
+        self.force_sensor_config = force_sensor
+        self._devices: list[_Device] = []
+        for index, config in enumerate(configs):
+            node = canopen.RemoteNode(config.node_id, self._object_dictionary)
+            node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+            self._network.add_node(node)
+            node.nmt.add_heartbeat_callback(functools.partial(self._on_heartbeat, index))
+            node.emcy.add_callback(functools.partial(self._on_emcy, index))
+            if isinstance(config, LinkEncoderConfig):
+                label = f"link encoder node {config.node_id} (joint {index})"
+            else:
+                label = f"force sensor node {config.node_id}"
+            self._devices.append(_Device(label=label, config=config, node=node))
+
+        n_devices = len(self._devices)
+        self._n_encoders = len(self.encoder_configs)
+        self._tpdo_device: dict[int, int] = {}
+        # Per-device state (index = position in self._devices).
+        self._answered = np.zeros(n_devices, dtype=bool)
+        self._answer_raw = np.zeros(n_devices, dtype=np.int64)
+        self._raw = np.zeros(n_devices, dtype=np.int64)
+        self._have_raw = np.zeros(n_devices, dtype=bool)
+        self._unchanged = np.zeros(n_devices, dtype=np.int64)
+        self._last_valid_time = np.full(n_devices, -np.inf)
+        self._nmt_state = np.full(n_devices, _UNKNOWN_STATE, dtype=np.int64)
+        self._last_heartbeat_time = np.full(n_devices, -np.inf)
+        self._heartbeat_timeout_s = np.array(
+            [
+                heartbeat_timeout_factor * config.heartbeat_ms / 1000.0
+                if config.heartbeat_ms
+                else np.inf
+                for config in configs
+            ]
+        )
+        self._stale_after_s = np.array([config.stale_after_s for config in configs])
+        encoder_configs = self.encoder_configs
+        self._counts_per_rev = np.array([c.counts_per_rev for c in encoder_configs], dtype=np.int64)
+        self._direction = np.array([c.direction for c in encoder_configs], dtype=np.int64)
+        self._offset_rad = np.array([c.offset_rad for c in encoder_configs])
+        self._single_turn = np.zeros(self._n_encoders, dtype=bool)
+        self._n_answered = 0
+        self._sync_time_s = math.nan
+        self._sync_outstanding = False
+        self._events: list[str] = []
+        self._heartbeat_seen = threading.Condition()
+        self._states_since_mark: list[list[int]] = [[] for _ in range(n_devices)]
+        self._notifier: can.Notifier | None = None
+        self._configuring: set[int] = set()
+        self._is_open = False
+        self._closed = False
+
+    # --- lifecycle -------------------------------------------------------------------------
+    @property
+    def is_open(self) -> bool:
+        return self._is_open
+
+    def open(self) -> None:
+        """Bring every node up (see module doc); raises CanDeviceError naming the node."""
+        if self._closed:
+            raise CanDeviceError(f"the reader on {self.bus_description} was closed")
+        with self._configuration_phase():
+            for index in range(len(self._devices)):
+                self._bring_up(index)
+        self._drain()
+        self._events.clear()
+        self._is_open = True
+
+    def recover_node(self, node_id: int) -> None:
+        """Bring one node up again (e.g. after it rebooted: boot-up seen, Pre-operational)."""
+        index = self._device_index(node_id)
+        with self._configuration_phase():
+            self._bring_up(index)
+        self._drain()
+
+    def close(self, *, nmt_command: str | None = None) -> None:
+        """Release the bus; first send NMT "PRE-OPERATIONAL" or "STOPPED" to every node if asked.
+
+        Safe to call twice.
+        """
+        commands = {None: None, "PRE-OPERATIONAL": _NMT_ENTER_PRE_OPERATIONAL, "STOPPED": _NMT_STOP}
+        if nmt_command not in commands:
+            raise ValueError(
+                f"nmt_command must be None, 'PRE-OPERATIONAL' or 'STOPPED', got {nmt_command!r}"
+            )
+        if self._closed:
+            return
+        self._closed = True
+        self._is_open = False
+        try:
+            self._stop_notifier()
+            command = commands[nmt_command]
+            if command is not None:
+                for device in self._devices:
+                    with contextlib.suppress(can.CanError):
+                        device.node.nmt.send_command(command)
+        finally:
+            self._bus.shutdown()
+
+    def __enter__(self) -> LinkEncoderReader:
+        self.open()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # --- per tick --------------------------------------------------------------------------
+    def send_sync(self) -> None:
+        """Put one SYNC on the bus now (after taking older frames off the bus)."""
+        if not self._is_open:
+            raise CanDeviceError(f"send_sync() on {self.bus_description} before open()")
+        self._drain()
+        self._answered[:] = False
+        self._n_answered = 0
+        self._sync_time_s = self._clock()
+        self._sync_outstanding = True
+        self._network.sync.transmit()
+
+    def collect(self, timeout_s: float) -> LinkReading:
+        """The answers to the last SYNC: returns when all nodes answered or after timeout_s."""
+        if not self._sync_outstanding:
+            raise CanDeviceError(f"collect() on {self.bus_description} without send_sync() first")
+        n_devices = len(self._devices)
+        deadline = time.monotonic() + timeout_s
+        recv = self._bus.recv
+        overdue_frames = 0
+        while self._n_answered < n_devices:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                # Past the deadline only frames already received count, and only so many:
+                # a flooded bus must not keep collect() from returning.
+                overdue_frames += 1
+                if overdue_frames > _MAX_FRAMES_PER_DRAIN:
+                    break
+            msg = recv(timeout=max(remaining, 0.0))
+            if msg is None:
+                break
+            self._dispatch(msg)
+        self._sync_outstanding = False
+        return self._build_reading()
+
+    def read(self, timeout_s: float) -> LinkReading:
+        """send_sync() then collect(timeout_s) (for a loop that has nothing to do in between)."""
+        self.send_sync()
+        return self.collect(timeout_s)
+
+    # --- receive path (no thread) ----------------------------------------------------------
+    def _drain(self) -> None:
+        """Handle the frames already received (bounded, so a flooded bus cannot hang a tick)."""
+        recv = self._bus.recv
+        for _ in range(_MAX_FRAMES_PER_DRAIN):
+            msg = recv(timeout=0.0)
+            if msg is None:
+                return
+            self._dispatch(msg)
+
+    def _dispatch(self, msg: can.Message) -> None:
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+            return
+        index = self._tpdo_device.get(msg.arbitration_id)
+        if index is None:  # NMT heartbeat, EMCY, SDO: canopen's handlers (callbacks below)
+            self._network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+            return
+        device = self._devices[index]
+        if len(msg.data) < 4:
+            self._events.append(
+                f"{device.label}: TPDO with {len(msg.data)} bytes ignored (expected 4)"
+            )
+            return
+        if not self._sync_outstanding:
+            self._events.append(f"{device.label}: late TPDO discarded (answered an earlier SYNC)")
+            return
+        if not self._answered[index]:
+            self._answered[index] = True
+            self._n_answered += 1
+        self._answer_raw[index] = _INT32.unpack_from(msg.data)[0]
+
+    def _on_heartbeat(self, index: int, state: int) -> None:
+        """canopen heartbeat callback (Notifier thread during open, else collect's thread)."""
+        device = self._devices[index]
+        with self._heartbeat_seen:
+            self._states_since_mark[index].append(state)
+            self._heartbeat_seen.notify_all()
+        previous = int(self._nmt_state[index])
+        booted = state == _HEARTBEAT_BOOTUP
+        if booted:
+            state = _HEARTBEAT_PRE_OPERATIONAL  # a booted node is Pre-operational
+        if index in self._configuring:
+            pass  # the boot-up and state changes that open()/recover_node() caused
+        elif booted:
+            self._events.append(
+                f"{device.label}: boot-up frame (the node restarted; it is Pre-operational "
+                "and has its default configuration: call recover_node)"
+            )
+        elif state != previous and previous != _UNKNOWN_STATE:
+            self._events.append(
+                f"{device.label}: NMT state {_state_name(previous)} -> {_state_name(state)}"
+            )
+        self._nmt_state[index] = state
+        self._last_heartbeat_time[index] = self._clock()
+
+    def _on_emcy(self, index: int, emcy: canopen.emcy.EmcyError) -> None:
+        self._events.append(
+            f"{self._devices[index].label}: EMCY code 0x{emcy.code:04X}, "
+            f"error register 0x{emcy.register:02X}"
+        )
+
+    def _build_reading(self) -> LinkReading:
+        now_s = self._sync_time_s
+        answered = self._answered
+        changed = answered & self._have_raw & (self._answer_raw != self._raw)
+        repeated = answered & self._have_raw & ~changed
+        self._unchanged = np.where(
+            repeated, self._unchanged + 1, np.where(answered, 0, self._unchanged)
+        )
+        self._raw = np.where(answered, self._answer_raw, self._raw)
+        self._have_raw |= answered
+        self._last_valid_time[answered] = now_s
+        age_s = now_s - self._last_valid_time
+        stale = age_s > self._stale_after_s
+        heartbeat_age_s = self._clock() - self._last_heartbeat_time
+        heartbeat_lost = heartbeat_age_s > self._heartbeat_timeout_s
+        states = tuple(_state_name(int(state)) for state in self._nmt_state)
+
+        n = self._n_encoders
+        angles = link_angle_rad_from_counts(
+            self._raw[:n],
+            self._counts_per_rev,
+            self._direction,
+            self._offset_rad,
+            self._single_turn,
+        )
+        angles = np.where(answered[:n], angles, np.nan)
+        force = None
+        if len(self._devices) > n:
+            device = self._devices[n]
+            config = device.config
+            assert isinstance(config, ForceSensorConfig)
+            valid = bool(answered[n])
+            force = ForceReading(
+                force_n=(
+                    force_n_from_counts(
+                        int(self._raw[n]),
+                        device.newtons_per_count,
+                        config.direction,
+                        config.offset_n,
+                    )
+                    if valid
+                    else math.nan
+                ),
+                valid=valid,
+                age_s=float(age_s[n]),
+                stale=bool(stale[n]),
+                raw=int(self._raw[n]),
+                nmt_state=states[n],
+                heartbeat_age_s=float(heartbeat_age_s[n]),
+                heartbeat_lost=bool(heartbeat_lost[n]),
+            )
+        events = tuple(self._events)
+        self._events.clear()
+        return LinkReading(
+            sync_time_s=now_s,
+            angles_rad=angles,
+            valid=answered[:n].copy(),
+            age_s=age_s[:n],
+            stale=stale[:n],
+            raw_counts=self._raw[:n].copy(),
+            raw_changed=changed[:n],
+            unchanged_count=self._unchanged[:n].copy(),
+            nmt_state=states[:n],
+            heartbeat_age_s=heartbeat_age_s[:n],
+            heartbeat_lost=heartbeat_lost[:n],
+            force=force,
+            events=events,
+        )
+
+    # --- configuration (canopen, Notifier running) -----------------------------------------
+    @contextlib.contextmanager
+    def _configuration_phase(self) -> Iterator[None]:
+        self._notifier = can.Notifier(self._bus, self._network.listeners, timeout=_NOTIFIER_POLL_S)
+        try:
+            yield
+        finally:
+            self._stop_notifier()
+
+    def _stop_notifier(self) -> None:
+        if self._notifier is not None:
+            self._notifier.stop(timeout=1.0)
+            self._notifier = None
+
+    def _error(self, device: _Device, problem: str) -> CanDeviceError:
+        return CanDeviceError(f"{device.label} on {self.bus_description}: {problem}")
+
+    def _bring_up(self, index: int) -> None:
+        self._configuring.add(index)
+        try:
+            self._configure(index)
+        finally:
+            self._configuring.discard(index)
+
+    def _configure(self, index: int) -> None:
+        device = self._devices[index]
+        self._tpdo_device = {cob: i for cob, i in self._tpdo_device.items() if i != index}
+        self._reset_communication(index)
+        if device.is_encoder:
+            self._check_encoder(index)
+            expected_mapping = POSITION_VALUE_MAPPING
+        else:
+            self._check_force_sensor(device)
+            expected_mapping = AI_PROCESS_VALUE_MAPPING
+        self._configure_tpdo(index, expected_mapping)
+        self._sdo_write(device, 0x1017, 0, device.config.heartbeat_ms, "heartbeat time 0x1017")
+        self._start(index)
+        self._reset_tracking(index)
+
+    def _reset_communication(self, index: int) -> None:
+        device = self._devices[index]
+        self._mark_states(index)
+        device.node.nmt.send_command(_NMT_RESET_COMMUNICATION)
+        if not self._wait_for_state(index, _HEARTBEAT_BOOTUP, self._boot_timeout_s):
+            node_id = device.config.node_id
+            raise self._error(
+                device,
+                f"no boot-up frame (0x{_HEARTBEAT_BASE + node_id:03X} [00]) within "
+                f"{self._boot_timeout_s} s after NMT reset communication; is the node powered, "
+                f"is its node ID {node_id} and does the bitrate match?",
+            )
+
+    def _read_profile(self, device: _Device) -> tuple[int, int, int]:
+        device_type = self._sdo_read(device, 0x1000, 0, "device type 0x1000")
+        return device_type, device_type & 0xFFFF, device_type >> 16
+
+    def _check_encoder(self, index: int) -> None:
+        device = self._devices[index]
+        config = device.config
+        assert isinstance(config, LinkEncoderConfig)
+        device_type, profile, encoder_type = self._read_profile(device)
+        if profile != CIA406_ENCODER_PROFILE:
+            raise self._error(
+                device,
+                f"device type 0x{device_type:08X} is profile CiA {profile}, not a CiA 406 "
+                "encoder (expected low 16 bits 0x0196)",
+            )
+        device.single_turn = encoder_type == CIA406_SINGLE_TURN_ABSOLUTE
+        self._single_turn[index] = device.single_turn
+        units_per_rev = self._sdo_read(device, 0x6001, 0, "units per revolution 0x6001")
+        if units_per_rev != config.counts_per_rev:
+            raise self._error(
+                device,
+                f"resolution mismatch: the node reports {units_per_rev} counts/rev (0x6001) but "
+                f"the configuration says {config.counts_per_rev}; fix the configuration or the "
+                "encoder's scaling",
+            )
+
+    def _check_force_sensor(self, device: _Device) -> None:
+        device_type, profile, _ = self._read_profile(device)
+        if profile != CIA404_MEASURING_DEVICE_PROFILE:
+            raise self._error(
+                device,
+                f"device type 0x{device_type:08X} is profile CiA {profile}, not a CiA 404 "
+                "measuring device (expected low 16 bits 0x0194)",
+            )
+        unit = self._sdo_read(device, 0x6131, 1, "AI physical unit 0x6131:01")
+        if (unit >> 16) & 0xFF != CIA303_NEWTON:
+            raise self._error(
+                device,
+                f"physical unit 0x{unit:08X} (0x6131:01) is not newton (CiA 303-2 unit code "
+                "0x21 in byte 2)",
+            )
+        prefix_exponent = int.from_bytes(bytes([unit >> 24]), "little", signed=True)
+        decimal_digits = self._sdo_read(device, 0x6132, 1, "AI decimal digits 0x6132:01")
+        device.newtons_per_count = 10.0 ** (prefix_exponent - decimal_digits)
+
+    def _configure_tpdo(self, index: int, expected_mapping: int) -> None:
+        """Check the mapping, enable the TPDO, transmission type 1 (CiA 301 0x18xx/0x1Axx)."""
+        device = self._devices[index]
+        number = device.config.tpdo
+        communication = TPDO_COMMUNICATION_BASE + number - 1
+        mapping = TPDO_MAPPING_BASE + number - 1
+        n_mapped = self._sdo_read(device, mapping, 0, f"TPDO{number} mapping 0x{mapping:04X}:00")
+        first_mapped = 0
+        if n_mapped:
+            first_mapped = self._sdo_read(device, mapping, 1, f"TPDO{number} mapping entry 1")
+        if first_mapped != expected_mapping:
+            raise self._error(
+                device,
+                f"TPDO{number} maps 0x{first_mapped:08X} first (0x{mapping:04X}:01), expected "
+                f"0x{expected_mapping:08X}; configure the node's mapping or set `tpdo` in the "
+                "configuration to the TPDO that carries it",
+            )
+        cob_id = self._sdo_read(device, communication, 1, f"TPDO{number} COB-ID")
+        if cob_id & _PDO_COB_ID_INVALID:
+            cob_id &= ~_PDO_COB_ID_INVALID
+            self._sdo_write(device, communication, 1, cob_id, f"TPDO{number} COB-ID (enable)")
+        if self._sdo_read(device, communication, 2, f"TPDO{number} transmission type") != 1:
+            self._sdo_write(device, communication, 2, 1, f"TPDO{number} transmission type 1")
+        device.tpdo_cob_id = cob_id & _STANDARD_ID_MASK
+        if device.tpdo_cob_id != _TPDO_COB_ID_BASES[number - 1] + device.config.node_id:
+            self._events.append(
+                f"{device.label}: TPDO{number} uses the non-default COB-ID "
+                f"0x{device.tpdo_cob_id:03X}"
+            )
+        clash = self._tpdo_device.get(device.tpdo_cob_id)
+        if clash is not None:
+            raise self._error(
+                device,
+                f"TPDO COB-ID 0x{device.tpdo_cob_id:03X} is also used by "
+                f"{self._devices[clash].label}",
+            )
+
+    def _start(self, index: int) -> None:
+        """NMT start, then wait for a heartbeat that says Operational (if heartbeats are on)."""
+        device = self._devices[index]
+        heartbeat_ms = device.config.heartbeat_ms
+        self._mark_states(index)
+        device.node.nmt.send_command(_NMT_START)
+        if heartbeat_ms:
+            wait_s = max(3.0 * heartbeat_ms / 1000.0, self._boot_timeout_s)
+            if not self._wait_for_state(index, _HEARTBEAT_OPERATIONAL, wait_s):
+                seen = [hex(state) for state in self._states_since_mark[index]]
+                raise self._error(
+                    device,
+                    f"no heartbeat saying Operational (0x05) within {wait_s:.3g} s after NMT "
+                    f"start (heartbeat states seen: {seen or 'none'})",
+                )
+        else:
+            self._nmt_state[index] = _UNKNOWN_STATE  # no heartbeat: the state is not monitored
+        self._tpdo_device[device.tpdo_cob_id] = index
+
+    def _reset_tracking(self, index: int) -> None:
+        self._have_raw[index] = False
+        self._unchanged[index] = 0
+        self._last_valid_time[index] = -np.inf
+        self._answered[index] = False
+
+    def _mark_states(self, index: int) -> None:
+        with self._heartbeat_seen:
+            self._states_since_mark[index] = []
+
+    def _wait_for_state(self, index: int, state: int, timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        with self._heartbeat_seen:
+            while state not in self._states_since_mark[index]:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0:
+                    return False
+                self._heartbeat_seen.wait(remaining)
+        return True
+
+    def _sdo_variable(self, device: _Device, index: int, subindex: int) -> canopen.sdo.SdoVariable:
+        variable = self._object_dictionary.get_variable(index, subindex)
+        if variable is None:
+            raise KeyError(f"0x{index:04X}:{subindex:02X} missing from sensor_object_dictionary()")
+        return canopen.sdo.SdoVariable(device.node.sdo, variable)
+
+    def _sdo_read(self, device: _Device, index: int, subindex: int, what: str) -> int:
+        with self._sdo_errors(device, f"reading {what}"):
+            return int(self._sdo_variable(device, index, subindex).raw)
+        raise AssertionError("unreachable")  # _sdo_errors always raises on failure
+
+    def _sdo_write(self, device: _Device, index: int, subindex: int, value: int, what: str) -> None:
+        with self._sdo_errors(device, f"writing {what}"):
+            self._sdo_variable(device, index, subindex).raw = value
+
+    @contextlib.contextmanager
+    def _sdo_errors(self, device: _Device, action: str) -> Iterator[None]:
+        try:
+            yield
+        except canopen.SdoAbortedError as error:
+            raise CanDeviceError(
+                f"{device.label} on {self.bus_description}: {action} refused: {error}"
+            ) from None
+        except canopen.SdoCommunicationError as error:
+            raise CanDeviceError(
+                f"{device.label} on {self.bus_description}: no SDO answer {action} within "
+                f"{self._sdo_timeout_s} s ({error})"
+            ) from None
+
+    def _device_index(self, node_id: int) -> int:
+        for index, device in enumerate(self._devices):
+            if device.config.node_id == node_id:
+                return index
+        known = [device.config.node_id for device in self._devices]
+        raise ValueError(
+            f"node {node_id} is not configured on {self.bus_description} (known: {known})"
+        )
+
+
+def _state_name(state: int) -> str:
+    if state == _UNKNOWN_STATE:
+        return "UNKNOWN"
+    return NMT_STATES.get(state, f"0x{state:02X}")

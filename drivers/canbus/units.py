@@ -1,0 +1,35 @@
+"""Device units -> SI for the CAN sensors: the one place each conversion happens."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def link_angle_rad_from_counts(
+    raw_counts: np.ndarray | int,
+    counts_per_rev: np.ndarray | int,
+    direction: np.ndarray | int,
+    offset_rad: np.ndarray | float,
+    single_turn: np.ndarray | bool = False,
+) -> np.ndarray | float:
+    """Encoder count -> link angle (rad): the one place this conversion happens.
+
+        angle = direction * 2*pi * c / counts_per_rev - offset_rad
+
+    with c the signed count; for a single-turn device (count in [0, N)) c is first wrapped into
+    [-N/2, N/2), so the link may move within +-half a turn of the encoder's zero.
+    Works element-wise on numpy arrays.
+    """
+    counts = np.asarray(raw_counts, dtype=np.float64)
+    per_rev = np.asarray(counts_per_rev, dtype=np.float64)
+    wrapped = np.mod(counts + per_rev // 2, per_rev) - per_rev // 2
+    counts = np.where(single_turn, wrapped, counts)
+    angle = np.asarray(direction) * (2.0 * np.pi) * counts / per_rev - offset_rad
+    return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def force_n_from_counts(
+    raw: int, newtons_per_count: float, direction: int, offset_n: float
+) -> float:
+    """Force-sensor process value -> force (N): direction * raw * newtons_per_count - offset_n."""
+    return direction * raw * newtons_per_count - offset_n

@@ -1,0 +1,119 @@
+"""One CAN bus segment of emulated nodes, and a runner that serves it on a python-can bus.
+
+`CanSegment` is the wire between the nodes: every node sees every frame except its own (like a
+real bus, where a transmitter does not receive its own frame), and the replies of one round
+go out in CAN arbitration order (lowest identifier first). It is pure: frames in, frames out,
+time from the caller.
+
+`NodeRunner` connects a segment to a python-can bus (in-process: the `virtual` interface):
+`pump(now_s)` takes every frame waiting on the bus, delivers it, and sends the replies and the
+nodes' own time-driven frames. Called once per emulator step it is deterministic and needs no
+thread; `pump_blocking` is for a serving loop that must wait for the host.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Iterable
+from typing import Protocol
+
+import can
+
+# Bound on reply chains within one delivery (nodes that answer each other forever are a bug).
+_MAX_FRAMES_PER_DELIVERY = 10_000
+
+
+class CanNode(Protocol):
+    """What a segment needs of a node: the pure handler API of the emulated nodes."""
+
+    node_id: int
+
+    def handle(self, msg: can.Message, now_s: float) -> list[can.Message]: ...
+
+    def poll(self, now_s: float) -> list[can.Message]: ...
+
+
+class CanSegment:
+    """One CAN bus segment: its nodes and its bitrate (bit/s, for adapters to check)."""
+
+    def __init__(self, nodes: Iterable[CanNode], *, bitrate: int = 1_000_000) -> None:
+        self.nodes: tuple[CanNode, ...] = tuple(nodes)
+        node_ids = [node.node_id for node in self.nodes]
+        duplicates = sorted({node_id for node_id in node_ids if node_ids.count(node_id) > 1})
+        if duplicates:
+            raise ValueError(f"two nodes on one CAN segment share node ID(s) {duplicates}")
+        if bitrate <= 0:
+            raise ValueError(f"bitrate must be a positive number of bit/s, got {bitrate}")
+        self.bitrate = bitrate
+
+    def deliver(self, msg: can.Message, now_s: float) -> list[can.Message]:
+        """Frames the nodes put on the bus in reaction to `msg` from outside the segment."""
+        return self._propagate([(msg, None)], now_s, report_initial=False)
+
+    def poll(self, now_s: float) -> list[can.Message]:
+        """Frames the nodes send on their own by `now_s`, and any reactions to them."""
+        polled = [(frame, node) for node in self.nodes for frame in node.poll(now_s)]
+        polled.sort(key=_arbitration_key)
+        return self._propagate(polled, now_s, report_initial=True)
+
+    def _propagate(
+        self,
+        initial: list[tuple[can.Message, CanNode | None]],
+        now_s: float,
+        *,
+        report_initial: bool,
+    ) -> list[can.Message]:
+        on_bus = [frame for frame, _ in initial] if report_initial else []
+        pending = deque(initial)
+        while pending:
+            frame, sender = pending.popleft()
+            replies = [
+                (reply, node)
+                for node in self.nodes
+                if node is not sender
+                for reply in node.handle(frame, now_s)
+            ]
+            if not replies:
+                continue
+            replies.sort(key=_arbitration_key)
+            on_bus.extend(reply for reply, _ in replies)
+            pending.extend(replies)
+            if len(on_bus) > _MAX_FRAMES_PER_DELIVERY:
+                raise RuntimeError(
+                    f"CAN segment: more than {_MAX_FRAMES_PER_DELIVERY} frames in reply to one "
+                    f"frame (0x{frame.arbitration_id:03X}); nodes keep answering each other"
+                )
+        return on_bus
+
+
+def _arbitration_key(item: tuple[can.Message, object]) -> int:
+    return item[0].arbitration_id
+
+
+class NodeRunner:
+    """Serves a CanSegment on a python-can bus (the nodes' side of the bus)."""
+
+    def __init__(self, bus: can.BusABC, segment: CanSegment) -> None:
+        self.bus = bus
+        self.segment = segment
+
+    def pump(self, now_s: float) -> int:
+        """Handle every frame waiting on the bus, then the nodes' timers; returns frames read."""
+        return self._pump(None, now_s)
+
+    def pump_blocking(self, clock: Callable[[], float], timeout_s: float) -> int:
+        """Wait up to `timeout_s` for a frame, then pump at `clock()`; returns frames read."""
+        first = self.bus.recv(timeout=timeout_s)
+        return self._pump(first, clock())
+
+    def _pump(self, first: can.Message | None, now_s: float) -> int:
+        handled = 0
+        msg = first if first is not None else self.bus.recv(timeout=0.0)
+        while msg is not None:
+            for reply in self.segment.deliver(msg, now_s):
+                self.bus.send(reply)
+            handled += 1
+            msg = self.bus.recv(timeout=0.0)
+        for frame in self.segment.poll(now_s):
+            self.bus.send(frame)
+        return handled

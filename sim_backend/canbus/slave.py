@@ -1,0 +1,430 @@
+"""A deterministic CiA 301 slave for the emulator: NMT, heartbeat, SDO server, SYNC -> TPDO.
+
+A pure frame handler: `handle(msg, now_s)` returns the frames the node puts on the bus in
+answer to one frame, `poll(now_s)` the frames it sends on its own (boot-up, heartbeat, event
+timer TPDO). Time is only the caller's `now_s` (the emulator's clock); the node owns no thread
+and no timer, so a lock-step emulator gets the same frames for the same inputs every run.
+
+CiA 301 behaviour implemented (sources: CiA 301 services as documented in the Beckhoff FC5101,
+Inovance MD38CAN2 and Datalogic AMT58 manuals, and CANopenNode's `minimal_project.xdd`):
+- NMT (0x000 [cs, node or 0]): start 0x01 -> Operational, stop 0x02 -> Stopped, 0x80 ->
+  Pre-operational, reset node 0x81 (every object back to its default) and reset
+  communication 0x82 (objects 0x1000-0x1FFF back to their defaults), each followed by the
+  boot-up frame 0x700+id [0x00] and Pre-operational. The boot-up frame is also sent at power-on.
+- Heartbeat 0x700+id [state] every 0x1017 ms (0 = off), states 0x04/0x05/0x7F, and at once on
+  an NMT state change (as CANopenNode's CO_NMT_process does; the period restarts from there).
+  A heartbeat that falls due while the caller is not polling is skipped, not sent in a burst.
+- SDO server (0x600+id -> 0x580+id) in Pre-operational and Operational, not in Stopped.
+- TPDO1 (COB-ID in 0x1800:01, bit 31 = invalid) only in Operational. Transmission type
+  (0x1800:02): 0 = on SYNC when the value changed, 1..240 = every n-th SYNC, 254/255 = every
+  0x1800:05 ms (event timer) on the caller's clock. Types 241..253 are refused (abort
+  0x06090030). The inhibit time (0x1800:03) and SYNC start value (0x1800:06) are stored but
+  have no effect. The mapping (0x1A00) is static, read from the EDS.
+- Node guarding (RTR on 0x700+id) and EMCY are not emulated.
+
+Faults (`SensorFault`, mutable, looked at on every call):
+- "dead": the node lost power: it sends nothing at all. Leaving "dead" is a power-on: all
+  objects back to their defaults, boot-up frame, Pre-operational (the master must configure and
+  start it again, as with a real node whose supply came back).
+- "stale": a hung counter: the process value stays at the last value the node sampled before
+  the fault began; NMT, SDO and heartbeat keep working.
+- "noisy": zero-mean Gaussian noise of `noise_counts_rms` (in the device's raw units) is added
+  before rounding, from a numpy Generator seeded by `seed` (deterministic).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+import numpy as np
+from canopen.objectdictionary import datatypes
+
+from sim_backend.canbus.cia301 import (
+    COMMUNICATION_AREA,
+    HEARTBEAT_COB_ID_BASE,
+    NMT_COB_ID,
+    PDO_COB_ID_EXTENDED,
+    PDO_COB_ID_INVALID,
+    SDO_REQUEST_COB_ID_BASE,
+    SDO_RESPONSE_COB_ID_BASE,
+    STANDARD_ID_MASK,
+    SYNC_COB_ID,
+    TRANSMISSION_ACYCLIC_SYNC,
+    TRANSMISSION_EVENT_MANUFACTURER,
+    TRANSMISSION_EVENT_PROFILE,
+    TRANSMISSION_SYNC_MAX,
+    NmtCommand,
+    NmtState,
+    SdoAbortCode,
+)
+from sim_backend.canbus.object_store import ObjectStore
+from sim_backend.canbus.sdo_server import SdoServer
+
+FAULT_MODES = ("ok", "dead", "stale", "noisy")
+
+_TPDO_COMMUNICATION = 0x1800
+_TPDO_MAPPING = 0x1A00
+_HEARTBEAT_TIME = 0x1017
+
+# PDO-mappable integer types and their struct codes (little endian, CiA 301 byte order).
+_STRUCT_CODES = {
+    datatypes.INTEGER8: "b",
+    datatypes.INTEGER16: "h",
+    datatypes.INTEGER32: "i",
+    datatypes.UNSIGNED8: "B",
+    datatypes.UNSIGNED16: "H",
+    datatypes.UNSIGNED32: "I",
+}
+
+
+@dataclass
+class SensorFault:
+    """An injectable fault of an emulated sensor node (mutable: the test or plant flips it).
+
+    mode: "ok", "dead" (no frames at all), "stale" (process value frozen), "noisy" (Gaussian
+    noise of `noise_counts_rms` raw units, e.g. encoder counts or millinewtons).
+    """
+
+    mode: str = "ok"
+    noise_counts_rms: float = 0.0
+
+    def check(self) -> None:
+        if self.mode not in FAULT_MODES:
+            raise ValueError(f"fault mode must be one of {FAULT_MODES}, got {self.mode!r}")
+        if not (math.isfinite(self.noise_counts_rms) and self.noise_counts_rms >= 0.0):
+            raise ValueError(
+                f"noise_counts_rms must be a finite value >= 0, got {self.noise_counts_rms!r}"
+            )
+
+
+def wrap_int32(value: int) -> int:
+    """Two's-complement wrap of a counter to the INTEGER32 range, like a 32-bit register."""
+    return ((value + 0x8000_0000) & 0xFFFF_FFFF) - 0x8000_0000
+
+
+def _to_microseconds(now_s: float) -> int:
+    # Integer time avoids 0.1 != 20 * 0.005 style misses in the heartbeat schedule.
+    return round(now_s * 1_000_000)
+
+
+class CanopenSlave:
+    """Base of the emulated nodes; a subclass supplies the process value (`_ideal_raw`).
+
+    A subclass sets its own attributes before calling `super().__init__`, which powers the
+    node on (and so calls `_reset_application`).
+    """
+
+    def __init__(
+        self,
+        node_id: int,
+        eds_file: Path,
+        *,
+        process_value_object: tuple[int, int],
+        heartbeat_ms: int,
+        seed: int,
+        tpdo_transmission_type: int,
+        serial_number: int,
+    ) -> None:
+        if not 1 <= node_id <= 127:
+            raise ValueError(f"CANopen node ID must be 1..127, got {node_id}")
+        if not 0 <= heartbeat_ms <= 0xFFFF:
+            raise ValueError(
+                f"heartbeat_ms must be 0..65535 (0x1017 is UNSIGNED16), got {heartbeat_ms}"
+            )
+        if _transmission_type_refusal(tpdo_transmission_type) is not None:
+            raise ValueError(
+                "tpdo_transmission_type must be 0..240, 254 or 255 (CiA 301 0x1800:02), "
+                f"got {tpdo_transmission_type}"
+            )
+        self.node_id = node_id
+        self.fault = SensorFault()
+        self._store = ObjectStore(eds_file, node_id)
+        self._store.set_default(_HEARTBEAT_TIME, 0, heartbeat_ms)
+        self._store.set_default(_TPDO_COMMUNICATION, 2, tpdo_transmission_type)
+        self._store.set_default(0x1018, 4, serial_number)
+        self._store.validate_writes(_TPDO_COMMUNICATION, 1, self._validate_tpdo_cob_id)
+        self._store.validate_writes(_TPDO_COMMUNICATION, 2, _transmission_type_refusal)
+        self._store.on_read(*process_value_object, self._sample_raw)
+        self._store.after_write = self._after_write
+        self._sdo = SdoServer(self._store)
+        self._rng = np.random.default_rng(seed)
+        self._tpdo_objects, self._tpdo_struct = self._static_tpdo_mapping()
+
+        self._heartbeat_cob_id = HEARTBEAT_COB_ID_BASE + node_id
+        self._sdo_request_cob_id = SDO_REQUEST_COB_ID_BASE + node_id
+        self._sdo_response_cob_id = SDO_RESPONSE_COB_ID_BASE + node_id
+
+        self._now_us = 0
+        self._powered = False
+        self._bootup_pending = False
+        self._state = NmtState.INITIALISING
+        self._fault_mode_seen = "ok"
+        self._last_sample_raw: int | None = None
+        self._frozen_raw: int | None = None
+        self._next_heartbeat_us: int | None = None
+        self._next_event_us: int | None = None
+        self._sync_count = 0
+        self._last_transmitted: tuple[Any, ...] | None = None
+        # TPDO communication parameters, cached from the store on every change.
+        self._tpdo_cob_id = 0
+        self._tpdo_enabled = False
+        self._transmission_type = 1
+        self._power_on()
+
+    # --- public handler API ----------------------------------------------------------------
+    @property
+    def nmt_state(self) -> NmtState:
+        """The node's NMT state (INITIALISING while it has no power)."""
+        return self._state
+
+    def handle(self, msg: can.Message, now_s: float) -> list[can.Message]:
+        """Frames this node sends in answer to `msg` (seen on the bus at `now_s`)."""
+        out = self._prologue(now_s)
+        if not self._powered or msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+            return out
+        cob_id = msg.arbitration_id
+        if cob_id == SYNC_COB_ID:
+            if self._state == NmtState.OPERATIONAL:
+                out.extend(self._on_sync())
+        elif cob_id == self._sdo_request_cob_id:
+            if self._state in (NmtState.PRE_OPERATIONAL, NmtState.OPERATIONAL):
+                response = self._sdo.handle_request(msg.data)
+                if response is not None:
+                    out.append(self._frame(self._sdo_response_cob_id, response))
+        elif cob_id == NMT_COB_ID:
+            out.extend(self._on_nmt(msg.data))
+        return out
+
+    def poll(self, now_s: float) -> list[can.Message]:
+        """Frames this node sends on its own by `now_s`: boot-up, heartbeat, event-timer TPDO."""
+        out = self._prologue(now_s)
+        if not self._powered:
+            return out
+        now_us = self._now_us
+        if self._next_heartbeat_us is not None and now_us >= self._next_heartbeat_us:
+            out.append(self._frame(self._heartbeat_cob_id, bytes([self._state])))
+            self._next_heartbeat_us = self._advance(
+                self._next_heartbeat_us, self._heartbeat_period_us()
+            )
+        if (
+            self._next_event_us is not None
+            and now_us >= self._next_event_us
+            and self._transmission_type >= TRANSMISSION_EVENT_MANUFACTURER
+        ):
+            if self._state == NmtState.OPERATIONAL and self._tpdo_enabled:
+                out.append(self._tpdo_frame(self._tpdo_values()))
+            self._next_event_us = self._advance(self._next_event_us, self._event_period_us())
+        return out
+
+    # --- for subclasses --------------------------------------------------------------------
+    def _ideal_raw(self) -> float:
+        """Process value in the device's raw units before rounding, without faults."""
+        raise NotImplementedError
+
+    def _reset_application(self) -> None:
+        """Device-specific state back to power-on (reset node / power cycle)."""
+
+    def _on_object_written(self, index: int, subindex: int, value: Any) -> None:
+        """A device object was written by SDO (after validation and storage)."""
+
+    # --- process value ---------------------------------------------------------------------
+    def _sample_raw(self) -> int:
+        """The process value now, in raw units, with the fault applied (the read hook)."""
+        if self._frozen_raw is not None:
+            return self._frozen_raw
+        exact = self._ideal_raw()
+        if not math.isfinite(exact):
+            raise ValueError(
+                f"node {self.node_id}: the plant's source gave a non-finite value ({exact!r})"
+            )
+        if self.fault.mode == "noisy" and self.fault.noise_counts_rms > 0.0:
+            exact += float(self._rng.normal(0.0, self.fault.noise_counts_rms))
+        raw = wrap_int32(math.floor(exact + 0.5))  # round half up
+        self._last_sample_raw = raw
+        return raw
+
+    # --- NMT, power, faults ----------------------------------------------------------------
+    def _prologue(self, now_s: float) -> list[can.Message]:
+        self._now_us = _to_microseconds(now_s)
+        mode = self.fault.mode
+        if mode != self._fault_mode_seen:
+            self.fault.check()
+            if mode == "dead":
+                self._powered = False
+                self._state = NmtState.INITIALISING
+            elif self._fault_mode_seen == "dead":
+                self._power_on()
+            if mode == "stale":
+                if self._last_sample_raw is None:
+                    self._sample_raw()
+                self._frozen_raw = self._last_sample_raw
+            else:
+                self._frozen_raw = None
+            self._fault_mode_seen = mode
+        if self._bootup_pending and self._powered:
+            self._bootup_pending = False
+            return [self._boot()]
+        return []
+
+    def _power_on(self) -> None:
+        self._store.reset()
+        self._reset_application()
+        self._sdo.reset()
+        self._refresh_tpdo_cache()
+        self._powered = True
+        self._state = NmtState.INITIALISING
+        self._bootup_pending = True
+        self._last_transmitted = None
+
+    def _boot(self) -> can.Message:
+        """Initialisation finished: boot-up frame, Pre-operational, timers restart from now."""
+        self._state = NmtState.PRE_OPERATIONAL
+        self._sdo.reset()
+        self._sync_count = 0
+        self._restart_heartbeat()
+        self._restart_event_timer()
+        return self._frame(self._heartbeat_cob_id, b"\x00")
+
+    def _on_nmt(self, data: bytes | bytearray) -> list[can.Message]:
+        if len(data) < 2 or data[1] not in (0, self.node_id):
+            return []
+        command = data[0]
+        previous = self._state
+        if command == NmtCommand.START:
+            if previous != NmtState.OPERATIONAL:
+                self._sync_count = 0
+                self._last_transmitted = None
+            self._state = NmtState.OPERATIONAL
+        elif command == NmtCommand.STOP:
+            self._state = NmtState.STOPPED
+        elif command == NmtCommand.ENTER_PRE_OPERATIONAL:
+            self._state = NmtState.PRE_OPERATIONAL
+        elif command == NmtCommand.RESET_NODE:
+            self._store.reset()
+            self._reset_application()
+            self._refresh_tpdo_cache()
+            return [self._boot()]
+        elif command == NmtCommand.RESET_COMMUNICATION:
+            self._store.reset(COMMUNICATION_AREA)
+            self._refresh_tpdo_cache()
+            return [self._boot()]
+        if self._state != previous and self._heartbeat_period_us() > 0:
+            # As CANopenNode does (CO_NMT_process): a state change is announced at once.
+            self._restart_heartbeat()
+            return [self._frame(self._heartbeat_cob_id, bytes([self._state]))]
+        return []
+
+    # --- timers ----------------------------------------------------------------------------
+    def _heartbeat_period_us(self) -> int:
+        return int(self._store.stored_value(_HEARTBEAT_TIME)) * 1000
+
+    def _event_period_us(self) -> int:
+        return int(self._store.stored_value(_TPDO_COMMUNICATION, 5)) * 1000
+
+    def _restart_heartbeat(self) -> None:
+        period = self._heartbeat_period_us()
+        self._next_heartbeat_us = self._now_us + period if period > 0 else None
+
+    def _restart_event_timer(self) -> None:
+        period = self._event_period_us()
+        self._next_event_us = self._now_us + period if period > 0 else None
+
+    def _advance(self, due_us: int, period_us: int) -> int | None:
+        if period_us <= 0:
+            return None
+        due_us += period_us
+        if due_us <= self._now_us:  # the caller skipped whole periods: do not burst
+            due_us = self._now_us + period_us
+        return due_us
+
+    # --- TPDO ------------------------------------------------------------------------------
+    def _static_tpdo_mapping(self) -> tuple[list[tuple[int, int]], struct.Struct]:
+        count = int(self._store.stored_value(_TPDO_MAPPING, 0))
+        objects: list[tuple[int, int]] = []
+        codes = "<"
+        for entry in range(1, count + 1):
+            mapped = int(self._store.stored_value(_TPDO_MAPPING, entry))
+            index, subindex, bits = mapped >> 16, (mapped >> 8) & 0xFF, mapped & 0xFF
+            variable = self._store.variable(index, subindex)
+            code = _STRUCT_CODES.get(variable.data_type)
+            if code is None or not variable.pdo_mappable or len(variable) != bits:
+                raise ValueError(
+                    f"EDS maps 0x{mapped:08X} into TPDO1, which is not a PDO-mappable "
+                    f"{bits}-bit integer object"
+                )
+            objects.append((index, subindex))
+            codes += code
+        tpdo_struct = struct.Struct(codes)
+        if tpdo_struct.size > 8:
+            raise ValueError(f"TPDO1 mapping of the EDS needs {tpdo_struct.size} bytes (max 8)")
+        return objects, tpdo_struct
+
+    def _tpdo_values(self) -> tuple[Any, ...]:
+        return tuple(self._store.value(index, subindex) for index, subindex in self._tpdo_objects)
+
+    def _tpdo_frame(self, values: tuple[Any, ...]) -> can.Message:
+        self._last_transmitted = values
+        return self._frame(self._tpdo_cob_id, self._tpdo_struct.pack(*values))
+
+    def _on_sync(self) -> list[can.Message]:
+        if not self._tpdo_enabled:
+            return []
+        transmission_type = self._transmission_type
+        if transmission_type == TRANSMISSION_ACYCLIC_SYNC:
+            values = self._tpdo_values()
+            return [] if values == self._last_transmitted else [self._tpdo_frame(values)]
+        if transmission_type <= TRANSMISSION_SYNC_MAX:
+            self._sync_count += 1
+            if self._sync_count < transmission_type:
+                return []
+            self._sync_count = 0
+            return [self._tpdo_frame(self._tpdo_values())]
+        return []  # event-driven types ignore SYNC
+
+    def _refresh_tpdo_cache(self) -> None:
+        cob_id = int(self._store.stored_value(_TPDO_COMMUNICATION, 1))
+        self._tpdo_cob_id = cob_id & STANDARD_ID_MASK
+        self._tpdo_enabled = not cob_id & PDO_COB_ID_INVALID
+        self._transmission_type = int(self._store.stored_value(_TPDO_COMMUNICATION, 2))
+
+    def _validate_tpdo_cob_id(self, value: int) -> SdoAbortCode | None:
+        if value & PDO_COB_ID_EXTENDED or not 0x001 <= value & STANDARD_ID_MASK <= 0x7FF:
+            return SdoAbortCode.VALUE_RANGE_EXCEEDED  # only 11-bit identifiers
+        old = int(self._store.stored_value(_TPDO_COMMUNICATION, 1))
+        both_valid = not (old | value) & PDO_COB_ID_INVALID
+        if both_valid and (old & STANDARD_ID_MASK) != (value & STANDARD_ID_MASK):
+            return SdoAbortCode.VALUE_RANGE_EXCEEDED  # CiA 301: set bit 31 before changing it
+        return None
+
+    def _after_write(self, index: int, subindex: int, value: Any) -> None:
+        if index == _HEARTBEAT_TIME:
+            self._restart_heartbeat()
+        elif index == _TPDO_COMMUNICATION:
+            self._refresh_tpdo_cache()
+            if subindex == 2:
+                self._sync_count = 0
+                self._last_transmitted = None
+            self._restart_event_timer()
+        else:
+            self._on_object_written(index, subindex, value)
+
+    def _frame(self, cob_id: int, data: bytes) -> can.Message:
+        return can.Message(
+            arbitration_id=cob_id,
+            data=data,
+            is_extended_id=False,
+            timestamp=self._now_us * 1e-6,
+        )
+
+
+def _transmission_type_refusal(value: int) -> SdoAbortCode | None:
+    supported = value <= TRANSMISSION_SYNC_MAX or value in (
+        TRANSMISSION_EVENT_MANUFACTURER,
+        TRANSMISSION_EVENT_PROFILE,
+    )
+    return None if supported and value >= 0 else SdoAbortCode.VALUE_RANGE_EXCEEDED
