@@ -1,0 +1,46 @@
+"""Dynamixel Pro (H54-200-S500-R) driver on the unmodified `dynamixel-sdk` (Protocol 2.0).
+
+- `DynamixelChain`: a chain of actuators on one port (state block by one sync read, goals by one
+  sync write, enable / disable / reboot, hardware-error reporting), SI units at its interface.
+- `scan`: which devices answer on a port.
+- `bench_bus`: the chain's tick against a bare SDK loop.
+"""
+
+from drivers.dynamixel.bench import BusBenchResult, CycleStats, bench_bus
+from drivers.dynamixel.chain import (
+    DeviceInfo,
+    DynamixelChain,
+    DynamixelState,
+    HardwareErrorStatus,
+)
+from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
+from drivers.dynamixel.control_table import MODELS, ControlItem, ModelSpec, model_spec
+from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, EepromChangeRefused
+from drivers.dynamixel.port import LowLatencyPortHandler, open_port
+from drivers.dynamixel.scan import FoundDevice, scan
+from drivers.dynamixel.units import H54_200_S500_R_UNITS, DeviceUnits
+
+__all__ = [
+    "H54_200_S500_R_UNITS",
+    "MODELS",
+    "BusBenchResult",
+    "ControlItem",
+    "CycleStats",
+    "DeviceInfo",
+    "DeviceShutdownError",
+    "DeviceUnits",
+    "DynamixelChain",
+    "DynamixelChainConfig",
+    "DynamixelJointConfig",
+    "DynamixelReplyError",
+    "DynamixelState",
+    "EepromChangeRefused",
+    "FoundDevice",
+    "HardwareErrorStatus",
+    "LowLatencyPortHandler",
+    "ModelSpec",
+    "bench_bus",
+    "model_spec",
+    "open_port",
+    "scan",
+]

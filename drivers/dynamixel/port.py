@@ -1,0 +1,144 @@
+"""Opening a Dynamixel serial port through the unmodified dynamixel-sdk, with a bounded timeout.
+
+The SDK's `PortHandler.setPacketTimeout` waits for a reply for
+
+    tx_time_per_byte * packet_length + 2 * LATENCY_TIMER + 2.0   [ms]
+
+with the module constant LATENCY_TIMER = 16 ms (the FTDI default latency), i.e. >= 34 ms of
+busy-wait per unanswered call (measured 34.3 ms; reference note section 3.2). A 200 Hz loop must
+not discover a missing device that way. ROBOTIS advise setting the USB-serial latency timer to
+1 ms (DynamixelSDK issues #288, #319, #116); `LowLatencyPortHandler` makes the latency term a
+parameter so the timeout matches the adapter's real setting. The SDK itself stays unmodified: this
+is a subclass overriding `setPacketTimeout` (and the clock it measures with, see below).
+
+Measured against the emulated chain (tests/test_dxl_driver_faults.py), 4 Mbps, latency 1 ms:
+a sync read with one silent ID costs 4.25 ms (3 IDs) / 4.84 ms (12 IDs), its timeout of
+4.20 / 4.78 ms, instead of >= 34 ms with the SDK's own constant.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import serial
+from dynamixel_sdk import PortHandler
+
+from drivers.joint_bus import BusError
+
+USB_SERIAL_SYSFS = Path("/sys/bus/usb-serial/devices")
+
+
+class LowLatencyPortHandler(PortHandler):
+    """`dynamixel_sdk.PortHandler` with a configurable latency term in its packet timeout.
+
+    timeout [ms] = tx_time_per_byte * packet_length + 2 * latency_timer_ms + timeout_margin_ms
+
+    Same shape as the SDK's formula (which hard-codes 16 ms and 2 ms). It also measures time with
+    `time.perf_counter_ns` instead of the SDK's `time.time`, so a wall-clock step (NTP) cannot
+    cut a wait short or stretch it. The broadcast ping keeps the SDK's own fixed timeout
+    (`setPacketTimeoutMillis`, about 0.8 s), which suits a one-off scan.
+
+    Not thread-safe (neither is the SDK): use one port from one thread.
+    """
+
+    def __init__(
+        self, port_name: str, *, latency_timer_ms: float = 1.0, timeout_margin_ms: float = 2.0
+    ) -> None:
+        if not latency_timer_ms > 0.0:
+            raise ValueError(f"latency_timer_ms must be > 0 ms, got {latency_timer_ms!r}")
+        if not timeout_margin_ms >= 0.0:
+            raise ValueError(f"timeout_margin_ms must be >= 0 ms, got {timeout_margin_ms!r}")
+        super().__init__(port_name)
+        self.latency_timer_ms = float(latency_timer_ms)
+        self.timeout_margin_ms = float(timeout_margin_ms)
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # overrides the SDK method
+        self.packet_start_time = self.getCurrentTime()
+        self.packet_timeout = (
+            self.tx_time_per_byte * packet_length
+            + 2.0 * self.latency_timer_ms
+            + self.timeout_margin_ms
+        )
+
+    def getCurrentTime(self) -> float:  # overrides the SDK method
+        """Milliseconds on a monotonic clock (the SDK uses wall time)."""
+        return time.perf_counter_ns() / 1e6
+
+    def packet_timeout_ms(self, packet_length: int) -> float:
+        """The timeout `setPacketTimeout(packet_length)` would set, for reports and tests."""
+        return (
+            self.tx_time_per_byte * packet_length
+            + 2.0 * self.latency_timer_ms
+            + self.timeout_margin_ms
+        )
+
+
+def sdk_accepts_baudrate(baudrate: int) -> bool:
+    """True if dynamixel-sdk's PortHandler can set this rate (its whitelist in getCFlagBaud)."""
+    return PortHandler("").getCFlagBaud(baudrate) > 0
+
+
+def usb_latency_timer_ms(port: str, sysfs_root: Path = USB_SERIAL_SYSFS) -> int | None:
+    """The USB-serial adapter's latency timer [ms] for `port`, or None if it has none.
+
+    Linux exposes it for FTDI adapters as /sys/bus/usb-serial/devices/ttyUSBn/latency_timer.
+    Symlinks such as /dev/serial/by-id/... are resolved first. A pty has no such file.
+    """
+    device_name = os.path.basename(os.path.realpath(port))
+    latency_file = sysfs_root / device_name / "latency_timer"
+    try:
+        return int(latency_file.read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def open_port(
+    port: str,
+    baudrate: int,
+    *,
+    latency_timer_ms: float = 1.0,
+    timeout_margin_ms: float = 2.0,
+    sysfs_root: Path = USB_SERIAL_SYSFS,
+) -> LowLatencyPortHandler:
+    """Open `port` at `baudrate` through the SDK, or raise `BusError` saying what to fix.
+
+    Refuses a rate outside the SDK's whitelist (it rejects 4.5 and 10.5 Mbps although the H54
+    supports them) and an adapter whose USB latency timer is longer than `latency_timer_ms`
+    (every reply would then arrive after the timeout).
+    """
+    if not sdk_accepts_baudrate(baudrate):
+        raise BusError(
+            f"baud rate {baudrate} bps cannot be set through dynamixel-sdk's PortHandler: its "
+            "whitelist (getCFlagBaud) accepts 9600, 19200, 38400, 57600, 115200, 230400, 460800, "
+            "500000, 576000, 921600, 1000000, 1152000, 2000000, 2500000, 3000000, 3500000 and "
+            "4000000 only (the H54 also runs at 4.5M and 10.5M, the SDK cannot). Set the "
+            "devices' Baud Rate item to a rate both support, e.g. 4000000 (index 6)."
+        )
+    handler = LowLatencyPortHandler(
+        port, latency_timer_ms=latency_timer_ms, timeout_margin_ms=timeout_margin_ms
+    )
+    try:
+        # setBaudRate opens (or re-opens) the port; openPort() would first open at 1 Mbps.
+        opened = handler.setBaudRate(baudrate)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise BusError(
+            f"cannot open serial port {port!r} at {baudrate} bps: {exc}. Check the device path "
+            "(e.g. /dev/ttyUSB0 or /dev/serial/by-id/...), that you may use it (dialout group) "
+            "and that no other program holds it."
+        ) from exc
+    if not opened:
+        raise BusError(f"dynamixel-sdk refused to open {port!r} at {baudrate} bps")
+    adapter_latency_ms = usb_latency_timer_ms(port, sysfs_root)
+    if adapter_latency_ms is not None and adapter_latency_ms > latency_timer_ms:
+        handler.closePort()
+        device_name = os.path.basename(os.path.realpath(port))
+        raise BusError(
+            f"the USB-serial adapter of {port!r} has a latency timer of {adapter_latency_ms} ms, "
+            f"longer than the configured latency_timer_ms={latency_timer_ms}: replies would "
+            f"arrive after the packet timeout. Set it with `echo 1 | sudo tee "
+            f"{sysfs_root / device_name / 'latency_timer'}` (or a udev rule), or raise "
+            "latency_timer_ms in the configuration."
+        )
+    return handler

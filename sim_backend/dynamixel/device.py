@@ -1,0 +1,386 @@
+"""One emulated Dynamixel Pro H54-200-S500-R: its control table and instruction semantics.
+
+Two faces:
+- the protocol face (`ping`, `read`, `write`, `reg_write`, `action`, `reboot`, `factory_reset`,
+  `status_error`, `replies_to`), used by `DynamixelChain`, which enforces the access rules of the
+  e-Manual and returns the error number of the status packet;
+- the firmware face (`item`, `set_item`, `raise_hardware_error`, `clear_hardware_error`,
+  `torque_enabled`, `in_shutdown`, `available`, `add_reboot_listener`), used by a physics model
+  to publish Present* values and faults. It bypasses the access rules.
+
+Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the H54 page):
+- EEPROM items are written only while Torque Enable = 0, else Access Error (7).
+- Read-only or undefined addresses: Access Error (7). A READ may span undefined bytes of the
+  table (they read as 0); a READ past the end of the table is an Access Error with no data.
+- Data Length Error (5): a write that covers only part of an item (also through indirect data).
+- Data Range Error (4): a value outside the item's range.
+- Data Limit Error (6): Goal Position outside Min/Max Position Limit (36/40), Goal Velocity
+  beyond +-Velocity Limit (32), Goal Torque beyond +-Torque Limit (30), Goal Acceleration
+  outside 0..Acceleration Limit (26).
+- A write with any error changes nothing (all of it or none of it). Checks in this order:
+  access, length, range, limit, shutdown.
+- Alert bit 0x80 in every status packet while Hardware Error Status != 0.
+- Shutdown (48): a hardware error whose bit is enabled there clears Torque Enable; only a REBOOT
+  brings torque back ("REBOOT is the only method to reset Torque Enable to '1'"). Not documented:
+  the reply to Torque Enable = 1 while shut down. This emulator refuses it with Result Fail (1)
+  (plus the alert bit) and leaves torque off.
+- REG_WRITE is checked when it arrives (errors are reported then and nothing is registered) and
+  again when ACTION executes it. ACTION without a registered write: Instruction Error (2).
+- REBOOT: the status packet is built first (with the pre-reboot alert bit); then RAM returns to
+  its initial values (Torque Enable 0, Hardware Error Status 0, Registered Instruction 0, Status
+  Return Level 2, Goal Position = Present Position; measured Present* values are kept), the
+  shutdown latch clears, reboot listeners run, and the device stays silent for `reboot_time_s`
+  (how long a real H54 takes is not published; a parameter).
+- FACTORY_RESET 0xFF / 0x01 / 0x02: EEPROM back to the e-Manual initial values (all / all but
+  ID / all but ID and Baud Rate), read-only identity items (model, firmware) kept, then as
+  REBOOT. Another option byte: Data Range Error (4). With Torque Enable = 1 it is refused with
+  Access Error (7) like any EEPROM write (the e-Manual does not say; the ROM lock does).
+  Broadcast with 0xFF is ignored (e-Manual; the chain handles broadcast).
+- Indirect Data n reads/writes the byte at Indirect Address n, inheriting that item's size,
+  range and access (include control_table_49_indirectdata_pro.md). An Indirect Address that
+  points at an Indirect Data byte reaches that byte's own storage (one level only: no loops).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+from sim_backend.dynamixel.control_table import (
+    BAUD_RATE_BPS,
+    FACTORY_BAUD_INDEX,
+    H54_LAYOUT,
+    HARDWARE_ERROR_BITS_MASK,
+    INDIRECT_ADDRESS_BASE,
+    INDIRECT_COUNT,
+    INDIRECT_DATA_BASE,
+    RETURN_DELAY_UNIT_S,
+    Access,
+    Area,
+    ControlItem,
+    ControlTableLayout,
+)
+from sim_backend.dynamixel.protocol import ALERT_BIT, ErrorCode, Instruction
+
+DEFAULT_FIRMWARE_VERSION = 1  # not published for the legacy Pro; any 0..254 is plausible
+DEFAULT_REBOOT_TIME_S = 0.3  # not published; a REBOOT of an X-series takes a few hundred ms
+
+FACTORY_RESET_ALL = 0xFF
+FACTORY_RESET_ALL_BUT_ID = 0x01
+FACTORY_RESET_ALL_BUT_ID_AND_BAUD = 0x02
+
+_TORQUE_ENABLE = "Torque Enable"
+_INDIRECT_DATA_END = INDIRECT_DATA_BASE + INDIRECT_COUNT
+_INDIRECT_ADDRESS_END = INDIRECT_ADDRESS_BASE + 2 * INDIRECT_COUNT
+
+
+class H54Device:
+    """One H54-200-S500-R: a bytearray control table plus the firmware's rules.
+
+    `eeprom_overrides` sets EEPROM items (by e-Manual name) as this unit was configured, e.g.
+    {"Return Delay Time": 0, "Max Position Limit": 100_000}; read-only identity items such as
+    "Model Number" may be overridden too (to emulate another model). A factory reset returns the
+    writable ones to the e-Manual values.
+    """
+
+    def __init__(
+        self,
+        dxl_id: int = 1,
+        *,
+        baud_index: int = FACTORY_BAUD_INDEX,
+        firmware_version: int = DEFAULT_FIRMWARE_VERSION,
+        eeprom_overrides: Mapping[str, int] | None = None,
+        reboot_time_s: float = DEFAULT_REBOOT_TIME_S,
+        layout: ControlTableLayout = H54_LAYOUT,
+    ) -> None:
+        if reboot_time_s < 0:
+            raise ValueError(f"reboot_time_s must be >= 0, got {reboot_time_s}")
+        self._layout = layout
+        self._table = bytearray(layout.size_bytes)
+        self.reboot_time_s = reboot_time_s
+        self.silenced = False  # firmware-side fault: the device hears nothing, answers nothing
+        self._reboot_until_s = float("-inf")
+        self._in_shutdown = False
+        self._registered: tuple[int, bytes] | None = None
+        self._reboot_listeners: list[Callable[[], None]] = []
+        self._indirect_map: list[int] | None = None  # Indirect Address 1..256, cached
+
+        for item in layout.items:
+            self._store(item, item.default)
+        self._store_checked("ID", dxl_id)
+        self._store_checked("Baud Rate", baud_index)
+        self._store_checked("Firmware Version", firmware_version)
+        for name, value in (eeprom_overrides or {}).items():
+            item = layout[name]
+            if item.area is not Area.EEPROM:
+                raise ValueError(
+                    f"eeprom_overrides may only set EEPROM items; {name!r} is in RAM "
+                    f"(use set_item for firmware-side RAM values)"
+                )
+            if item.access is Access.READ_WRITE and not item.in_range(value):
+                raise ValueError(
+                    f"eeprom_overrides[{name!r}] = {value} is outside its range "
+                    f"{item.minimum}..{item.maximum}"
+                )
+            self._store(item, value)
+        self._goal_from_present()
+
+    # ---------------------------------------------------------------- firmware face
+
+    @property
+    def dxl_id(self) -> int:
+        return self._table[7]
+
+    @property
+    def baud_bps(self) -> int:
+        """The line speed this device listens and answers at, from Baud Rate (8)."""
+        return BAUD_RATE_BPS[self._table[8]]
+
+    @property
+    def return_delay_s(self) -> float:
+        """Return Delay Time (9) in seconds (2 us per unit)."""
+        return self._table[9] * RETURN_DELAY_UNIT_S
+
+    @property
+    def status_return_level(self) -> int:
+        return self._table[891]
+
+    @property
+    def torque_enabled(self) -> bool:
+        return self._table[562] != 0
+
+    @property
+    def in_shutdown(self) -> bool:
+        """True after a hardware error enabled in Shutdown (48) until the next REBOOT."""
+        return self._in_shutdown
+
+    @property
+    def hardware_error_status(self) -> int:
+        return self._table[892]
+
+    def item(self, name: str) -> int:
+        """Decoded value of an item (signed where the item is); Indirect Data follows its map."""
+        item = self._layout[name]
+        if INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END:
+            return self._table[self._indirect_target(item.address)]
+        return item.decode(self._table[item.address : item.end])
+
+    def set_item(self, name: str, value: int) -> None:
+        """Firmware-side write: no access, range or limit rules (the value must fit the item)."""
+        item = self._layout[name]
+        if INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END:
+            self._table[self._indirect_target(item.address)] = item.encode(value)[0]
+        else:
+            self._store(item, value)
+
+    def raise_hardware_error(self, bits: int) -> None:
+        """OR `bits` into Hardware Error Status (892). Bits also set in Shutdown (48) turn
+        torque off and latch the shutdown until REBOOT."""
+        if bits & ~HARDWARE_ERROR_BITS_MASK or bits < 0:
+            raise ValueError(
+                f"hardware error bits must be within 0x{HARDWARE_ERROR_BITS_MASK:02X} "
+                f"(bits 7 and 6 are unused), got 0x{bits:X}"
+            )
+        self._table[892] |= bits
+        if bits & self.item("Shutdown"):
+            self._table[562] = 0
+            self._in_shutdown = True
+
+    def clear_hardware_error(self, bits: int) -> None:
+        """Clear bits of Hardware Error Status (a non-latched condition went away). The
+        shutdown latch stays: only REBOOT clears it."""
+        self._table[892] &= ~bits & 0xFF
+
+    def available(self, now_s: float) -> bool:
+        """False while rebooting or while silenced by a firmware-side fault."""
+        return not self.silenced and now_s >= self._reboot_until_s
+
+    def add_reboot_listener(self, fn: Callable[[], None]) -> None:
+        """`fn()` runs after every REBOOT / FACTORY_RESET (RAM is back to initial values)."""
+        self._reboot_listeners.append(fn)
+
+    # ---------------------------------------------------------------- protocol face
+
+    def replies_to(self, instruction: int) -> bool:
+        """Status Return Level (891): 0 = PING only, 1 = PING and READ, 2 = everything.
+        SYNC_READ and BULK_READ count as READ."""
+        if instruction == Instruction.PING:
+            return True
+        level = self.status_return_level
+        if level >= 2:
+            return True
+        return level == 1 and instruction in (
+            Instruction.READ,
+            Instruction.SYNC_READ,
+            Instruction.BULK_READ,
+        )
+
+    def status_error(self, error: int) -> int:
+        """The status packet's error byte: `error` plus the alert bit while HES != 0."""
+        return error | ALERT_BIT if self._table[892] else error
+
+    def ping(self) -> bytes:
+        """PING status params: model number LSB, MSB, firmware version."""
+        return bytes((self._table[0], self._table[1], self._table[6]))
+
+    def read(self, address: int, length: int) -> tuple[int, bytes]:
+        """READ: (error number, data). Undefined bytes inside the table read as 0."""
+        if address < 0 or length < 0 or address + length > self._layout.size_bytes:
+            return ErrorCode.ACCESS, b""
+        end = address + length
+        table = self._table
+        if end <= INDIRECT_DATA_BASE or address >= _INDIRECT_DATA_END:
+            return ErrorCode.NONE, bytes(table[address:end])
+        data = bytearray(table[address:end])
+        targets = self._indirect_targets()
+        for data_address in range(max(address, INDIRECT_DATA_BASE), min(end, _INDIRECT_DATA_END)):
+            data[data_address - address] = table[targets[data_address - INDIRECT_DATA_BASE]]
+        return ErrorCode.NONE, bytes(data)
+
+    def write(self, address: int, data: bytes) -> int:
+        """WRITE: all of it or none of it; returns the error number."""
+        error, plan = self._plan_write(address, data)
+        if error == ErrorCode.NONE:
+            for physical, byte in plan:
+                self._table[physical] = byte
+                if INDIRECT_ADDRESS_BASE <= physical < _INDIRECT_ADDRESS_END:
+                    self._indirect_map = None
+        return error
+
+    def reg_write(self, address: int, data: bytes) -> int:
+        """REG_WRITE: check now, register for ACTION, Registered Instruction := 1."""
+        error, _ = self._plan_write(address, data)
+        if error == ErrorCode.NONE:
+            self._registered = (address, bytes(data))
+            self._table[890] = 1
+        return error
+
+    def action(self) -> int:
+        """ACTION: run the registered write; Registered Instruction := 0."""
+        if self._registered is None:
+            return ErrorCode.INSTRUCTION
+        address, data = self._registered
+        self._registered = None
+        self._table[890] = 0
+        return self.write(address, data)
+
+    def reboot(self, now_s: float) -> None:
+        """REBOOT after the status went out: RAM to initial values, silent for a while."""
+        for item in self._layout.items:
+            if item.area is Area.RAM and not item.measured:
+                self._store(item, item.default)
+        self._goal_from_present()
+        self._registered = None
+        self._in_shutdown = False
+        self._reboot_until_s = now_s + self.reboot_time_s
+        for listener in self._reboot_listeners:
+            listener()
+
+    def check_factory_reset(self, option: int) -> int:
+        """Error number FACTORY_RESET with `option` would get (NONE: it will run)."""
+        valid = (FACTORY_RESET_ALL, FACTORY_RESET_ALL_BUT_ID, FACTORY_RESET_ALL_BUT_ID_AND_BAUD)
+        if option not in valid:
+            return ErrorCode.DATA_RANGE
+        if self.torque_enabled:
+            return ErrorCode.ACCESS
+        return ErrorCode.NONE
+
+    def factory_reset(self, option: int, now_s: float) -> None:
+        """FACTORY_RESET (after `check_factory_reset` said yes and the status went out)."""
+        keep = {
+            FACTORY_RESET_ALL_BUT_ID: {"ID"},
+            FACTORY_RESET_ALL_BUT_ID_AND_BAUD: {"ID", "Baud Rate"},
+        }.get(option, set())
+        for item in self._layout.items:
+            writable_eeprom = item.area is Area.EEPROM and item.access is Access.READ_WRITE
+            if writable_eeprom and item.name not in keep:
+                self._store(item, item.default)
+        self.reboot(now_s)
+
+    # ---------------------------------------------------------------- internals
+
+    def _store(self, item: ControlItem, value: int) -> None:
+        self._table[item.address : item.end] = item.encode(value)
+        if item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END:
+            self._indirect_map = None
+
+    def _store_checked(self, name: str, value: int) -> None:
+        item = self._layout[name]
+        if not item.in_range(value):
+            raise ValueError(f"{name} must be {item.minimum}..{item.maximum}, got {value}")
+        self._store(item, value)
+
+    def _goal_from_present(self) -> None:
+        # Power-on/reboot: hold where the output is (Goal Position has no published initial
+        # value; holding the present position is what makes a later torque-on jump-free).
+        position = self.item("Present Position")
+        self._store(self._layout["Goal Position"], position)
+
+    def _indirect_targets(self) -> list[int]:
+        """Indirect Address 1..256 as a list (rebuilt after any write to 49..560)."""
+        if self._indirect_map is None:
+            table = self._table
+            self._indirect_map = [
+                table[base] | (table[base + 1] << 8)
+                for base in range(INDIRECT_ADDRESS_BASE, _INDIRECT_ADDRESS_END, 2)
+            ]
+        return self._indirect_map
+
+    def _indirect_target(self, data_address: int) -> int:
+        return self._indirect_targets()[data_address - INDIRECT_DATA_BASE]
+
+    def _physical(self, address: int) -> int:
+        """Where the byte at `address` really lives (Indirect Data follows its map)."""
+        if INDIRECT_DATA_BASE <= address < _INDIRECT_DATA_END:
+            return self._indirect_target(address)
+        return address
+
+    def _limit_value(self, bound: str | int | None) -> int | None:
+        if bound is None or isinstance(bound, int):
+            return bound
+        if bound.startswith("-"):
+            return -self.item(bound[1:])
+        return self.item(bound)
+
+    def _plan_write(self, address: int, data: bytes) -> tuple[int, list[tuple[int, int]]]:
+        """Check a write of `data` at `address`; return (error, [(physical address, byte)])."""
+        layout = self._layout
+        if not data:
+            return ErrorCode.DATA_LENGTH, []
+        if address < 0 or address + len(data) > layout.size_bytes:
+            return ErrorCode.ACCESS, []
+        torque_on = self.torque_enabled
+        plan: list[tuple[int, int]] = []
+        touched: dict[str, tuple[ControlItem, dict[int, int]]] = {}
+        for offset, byte in enumerate(data):
+            physical = self._physical(address + offset)
+            item = layout.item_at(physical)
+            if item is None or item.access is Access.READ:
+                return ErrorCode.ACCESS, []
+            if item.area is Area.EEPROM and torque_on:
+                return ErrorCode.ACCESS, []
+            if item.writable_when is not None:
+                gate_name, gate_value = item.writable_when
+                if self.item(gate_name) != gate_value:
+                    return ErrorCode.ACCESS, []
+            touched.setdefault(item.name, (item, {}))[1][physical - item.address] = byte
+            plan.append((physical, byte))
+        values: list[tuple[ControlItem, int]] = []
+        for item, item_bytes in touched.values():
+            if len(item_bytes) != item.size:
+                return ErrorCode.DATA_LENGTH, []
+            raw = bytes(item_bytes[k] for k in range(item.size))
+            values.append((item, item.decode(raw)))
+        for item, value in values:
+            if not item.in_range(value):
+                return ErrorCode.DATA_RANGE, []
+        for item, value in values:
+            if item.name == "Goal Position" and self.item("Operating Mode") == 4:
+                continue  # Extended Position Control Mode ignores the position limits
+            low = self._limit_value(item.limit_low)
+            high = self._limit_value(item.limit_high)
+            if (low is not None and value < low) or (high is not None and value > high):
+                return ErrorCode.DATA_LIMIT, []
+        for item, value in values:
+            if item.name == _TORQUE_ENABLE and value == 1 and self._in_shutdown:
+                return ErrorCode.RESULT_FAIL, []
+        return ErrorCode.NONE, plan
