@@ -102,7 +102,7 @@ def test_counts_to_radians_against_analysis() -> None:
     angles = link_angle_rad_from_counts(
         np.array([N // 2, -N // 8]), np.array([N, 4096]), np.array([1, -1]), np.array([0.0, 0.1])
     )
-    np.testing.assert_allclose(angles, [math.pi, N / 8 / 4096 * 2 * math.pi - 0.1])
+    np.testing.assert_allclose(angles, [math.pi, N / 8 / 4096 * 2 * math.pi + 0.1])
     assert force_n_from_counts(-23457, 1e-3, -1, 0.5) == pytest.approx(22.957)
 
 
@@ -216,7 +216,7 @@ def test_collect_returns_si_angles_with_offset_and_direction(testbeds) -> None:
         assert reading.valid.tolist() == [True, True]
         assert reading.raw_counts.tolist() == [counts_of(true_5), counts_of(true_6)]
         assert abs(reading.angles_rad[0] - true_5) <= half_count
-        assert abs(reading.angles_rad[1] - (-true_6 - 0.1)) <= half_count
+        assert abs(reading.angles_rad[1] - (-(true_6 - 0.1))) <= half_count
         assert reading.age_s.tolist() == [0.0, 0.0]
         assert reading.sync_time_s == pytest.approx(testbed.now_s)
 

@@ -11,7 +11,8 @@ class LinkEncoderConfig:
     """One joint's link encoder on CAN.
 
     node_id: CANopen node ID (1..127). counts_per_rev: must equal the node's 0x6001.
-    offset_rad: the reading (after `direction`) when the link is at its zero.
+    offset_rad: the encoder's reading (rad, before `direction`) when the link is at its zero:
+        angle = direction * (reading - offset_rad), as for the actuator's motor offset.
     direction: +1 or -1, the sign between the encoder's count and the joint's angle.
     stale_after_s: age beyond which the last value must not be used (`LinkReading.stale`).
     heartbeat_ms: producer heartbeat time written to 0x1017 (0 = no heartbeat).

@@ -14,7 +14,10 @@ def link_angle_rad_from_counts(
 ) -> np.ndarray | float:
     """Encoder count -> link angle (rad): the one place this conversion happens.
 
-        angle = direction * 2*pi * c / counts_per_rev - offset_rad
+    offset_rad is the encoder's own reading (in rad) when the link is at its zero, the same
+    convention as the actuator's motor_offset_rad (drivers/dynamixel/units.py):
+
+        angle = direction * (2*pi * c / counts_per_rev - offset_rad)
 
     with c the signed count; for a single-turn device (count in [0, N)) c is first wrapped into
     [-N/2, N/2), so the link may move within +-half a turn of the encoder's zero.
@@ -24,7 +27,7 @@ def link_angle_rad_from_counts(
     per_rev = np.asarray(counts_per_rev, dtype=np.float64)
     wrapped = np.mod(counts + per_rev // 2, per_rev) - per_rev // 2
     counts = np.where(single_turn, wrapped, counts)
-    angle = np.asarray(direction) * (2.0 * np.pi) * counts / per_rev - offset_rad
+    angle = np.asarray(direction) * ((2.0 * np.pi) * counts / per_rev - offset_rad)
     return float(angle) if np.ndim(angle) == 0 else angle
 
 
