@@ -116,8 +116,11 @@ class JointBus(abc.ABC):
         """Torque off for every joint (best effort on every joint even if one fails)."""
 
     @abc.abstractmethod
-    def reboot(self, joints: list[int] | None = None) -> None:
-        """Reboot the actuators (all, or the given joint indices): clears latched hardware errors."""
+    def reboot(self, joints: list[int] | None = None) -> dict[int, int]:
+        """Reboot the actuators (all, or these joint indices); clears latched hardware errors.
+
+        Returns the Hardware Error Status bits each device reports after the reboot.
+        """
 
     @abc.abstractmethod
     def close(self) -> None:

@@ -56,6 +56,10 @@ class LockstepClock(LoopClock):
         self._index += 1
         return Tick(self._index, self._index * self.period_s, 0, math.nan, self.period_s)
 
+    def now(self) -> float:
+        """The current tick's time: what the drivers stamp their readings with in lock-step."""
+        return max(self._index, 0) * self.period_s
+
 
 @dataclass
 class WallClockStats:

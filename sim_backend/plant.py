@@ -22,7 +22,7 @@ Every physical figure is a parameter below with its unit and its source or reaso
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -76,7 +76,7 @@ class TestbedPlantParams:
     load_radius_m: float = 0.04
     gravity_m_s2: float = GRAVITY_M_S2
     initial_link_angle_rad: float = 0.0
-    obstacle: ObstacleParams | None = field(default_factory=ObstacleParams)
+    obstacle: ObstacleParams | None = None  # placed by the experiment's scenario
     physics_timestep_s: float = 0.001
 
     def __post_init__(self) -> None:

@@ -24,7 +24,11 @@ from sim_backend.servo import ControlTable, H54Firmware, H54ServoParams
 
 @dataclass(frozen=True)
 class Mounting:
-    """device_angle = direction * (physical_angle + offset_rad)."""
+    """How a device is mounted: physical = direction * (device - offset_rad).
+
+    offset_rad is the device's reading when the joint is at zero, the convention of the
+    configuration file and of the host's drivers, so the drivers undo exactly this.
+    """
 
     direction: int = 1
     offset_rad: float = 0.0
@@ -34,10 +38,10 @@ class Mounting:
             raise ValueError(f"mounting direction must be +1 or -1, got {self.direction}")
 
     def to_device(self, physical: float) -> float:
-        return self.direction * (physical + self.offset_rad)
+        return self.direction * physical + self.offset_rad
 
     def to_physical(self, device: float) -> float:
-        return self.direction * device - self.offset_rad
+        return self.direction * (device - self.offset_rad)
 
 
 class EmulatedJoint:
@@ -69,8 +73,11 @@ class EmulatedJoint:
         self._report()
         self.table.set_item("Goal Position", self.table.item("Present Position"))
 
-    def step(self, scenario_time_s: float) -> None:
-        """One physics step: firmware -> motor -> MuJoCo -> Present* items and protection."""
+    def step(self, scenario_time_s: float | None) -> None:
+        """One physics step: firmware -> motor -> MuJoCo -> Present* items and protection.
+
+        scenario_time_s: time since the run's first SYNC (None before it: no pushes yet).
+        """
         plant = self.plant
         mount = self.motor_mounting
         device_angle = mount.to_device(plant.motor_angle_rad)
@@ -83,7 +90,10 @@ class EmulatedJoint:
         else:
             plant.set_torque_off(self.firmware.params.dynamic_brake_damping_nms_per_rad)
         self._torque_was_on = out.torque_on
-        plant.set_external_force(sum(p.force_at(scenario_time_s) for p in self.pushes))
+        push = 0.0
+        if scenario_time_s is not None:
+            push = sum(p.force_at(scenario_time_s) for p in self.pushes)
+        plant.set_external_force(push)
         plant.step()
         self._report()
 
@@ -104,7 +114,8 @@ class VirtualTestbed:
     """All emulated joints on one physics clock.
 
     `advance(period_s)` runs whole physics steps; in lock-step mode the emulator calls it once per
-    CAN SYNC with the loop period, in real-time mode with the elapsed wall time.
+    CAN SYNC with the loop period, in real-time mode with the elapsed wall time. The scenario
+    clock (pushes, faults) starts when `start_scenario()` is called, at the run's first SYNC.
     """
 
     def __init__(self, joints: Sequence[EmulatedJoint]) -> None:
@@ -112,12 +123,24 @@ class VirtualTestbed:
             raise ValueError("a virtual testbed needs at least one joint")
         self.joints = list(joints)
         self._dt = joints[0].plant.params.physics_timestep_s
-        self.scenario_time_s = 0.0
+        self.time_s = 0.0
+        self.scenario_origin_s: float | None = None
         self._carry_s = 0.0
 
     @property
     def physics_timestep_s(self) -> float:
         return self._dt
+
+    def start_scenario(self) -> None:
+        if self.scenario_origin_s is None:
+            self.scenario_origin_s = self.time_s
+
+    @property
+    def scenario_time_s(self) -> float | None:
+        """Time since the first SYNC on the plant's clock, None before it."""
+        if self.scenario_origin_s is None:
+            return None
+        return self.time_s - self.scenario_origin_s
 
     def advance(self, duration_s: float) -> int:
         """Advance by whole physics steps covering duration_s (remainders carry over)."""
@@ -125,7 +148,8 @@ class VirtualTestbed:
         steps = int(math.floor(total / self._dt + 1e-9))
         self._carry_s = total - steps * self._dt
         for _ in range(steps):
+            scenario_time = self.scenario_time_s
             for joint in self.joints:
-                joint.step(self.scenario_time_s)
-            self.scenario_time_s += self._dt
+                joint.step(scenario_time)
+            self.time_s += self._dt
         return steps

@@ -1,0 +1,164 @@
+"""The `hil` command.
+
+    hil run [EXPERIMENT] [--controller NAME] [--kdist K] [--config FILE] [--emulate]
+            [--realtime] [--out DIR] [--json] [--inject FAULT@T[+D]] [--seed N] ...
+    hil emulate [--config FILE] [--realtime] [--experiment NAME] [--inject FAULT@T[+D]]
+    hil scan --port PATH [--baudrate N]
+    hil reboot [--config FILE] [--port ...]
+    hil bench bus|loop [--json]
+    hil config                 print the sample configuration file
+
+Exit codes: 0 success, 1 the run ended in a safety stop or failed, 2 bad arguments or bad
+configuration (nothing was sent to any device).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from hil.config import ConfigError, default_config_text, load_config
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("connection overrides (point a config at other ports)")
+    group.add_argument("--port", help="Dynamixel serial port (overrides [dynamixel] port)")
+    group.add_argument("--baudrate", type=int, help="Dynamixel baud (overrides the config)")
+    group.add_argument("--can-interface", help="python-can interface, e.g. socketcan, slcan")
+    group.add_argument("--can-channel", help="python-can channel, e.g. can0 or /dev/pts/4")
+    group.add_argument(
+        "--attach",
+        metavar="JSON",
+        help="the first line `hil emulate` printed (or a file holding it): use its ports",
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hil",
+        description="Kim et al. (ICRA 2018) GC + DOB + LQR on flexible-joint Dynamixel Pro "
+        "actuators: the real testbed, or its byte-exact emulation.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser(
+        "run",
+        help="run an experiment (or, without one, the paper's whole testbed comparison)",
+        description="Without --config: on the embedded emulated testbed, in lock-step. With "
+        "--config FILE: on the hardware FILE describes (add --emulate to emulate it instead).",
+    )
+    run.add_argument(
+        "experiment", nargs="?", help="contact or impact; omit for the full comparison"
+    )
+    run.add_argument(
+        "--controller",
+        default=None,
+        choices=["pid", "gc", "gc+lqr", "gc+lqr+dob"],
+        help="default: the config's [controller] name",
+    )
+    run.add_argument("--kdist", type=float, help="DOB gain Kdist (default: the config's)")
+    run.add_argument("--config", type=Path, help="configuration file (default: built-in testbed)")
+    run.add_argument("--emulate", action="store_true", help="emulate the --config hardware")
+    run.add_argument("--realtime", action="store_true", help="pace with the wall clock")
+    run.add_argument("--out", type=Path, default=Path("runs"), help="output directory root")
+    run.add_argument("--json", action="store_true", help="last stdout line: metrics as JSON")
+    run.add_argument(
+        "--inject",
+        action="append",
+        default=[],
+        metavar="FAULT@T[+D]",
+        help="inject a fault at T s for D s (emulator faults: dropped_reply, corrupt_crc, "
+        "silent_id, dead_encoder, stale_encoder, noisy_encoder; loop fault: overrun)",
+    )
+    run.add_argument("--seed", type=int, help="emulator seed (default: the config's)")
+    run.add_argument("--duration", type=float, help="override the experiment's duration [s]")
+    run.add_argument(
+        "--reboot-first",
+        action="store_true",
+        help="reboot actuators that report a hardware error, then home slowly, then run",
+    )
+    run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    run.add_argument(
+        "--current-guard",
+        choices=["on", "off"],
+        help="the software overload guard (default: the config's; the comparison runs without "
+        "it, as the paper did, so the actuator's own protection is what acts)",
+    )
+    _add_connection_overrides(run)
+
+    emulate = sub.add_parser("emulate", help="serve the virtual testbed until interrupted")
+    emulate.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
+    emulate.add_argument("--realtime", action="store_true", help="wall-clock physics and wire time")
+    emulate.add_argument("--experiment", help="build this experiment's world (block, pushes)")
+    emulate.add_argument("--inject", action="append", default=[], metavar="FAULT@T[+D]")
+    emulate.add_argument("--seed", type=int)
+    emulate.add_argument("--spec-file", type=Path, help=argparse.SUPPRESS)
+
+    scan = sub.add_parser("scan", help="list the Dynamixel IDs and models on a port")
+    scan.add_argument("--port", required=True)
+    scan.add_argument("--baudrate", type=int, default=None, help="default: try the usual bauds")
+    scan.add_argument("--json", action="store_true")
+
+    reboot = sub.add_parser(
+        "reboot", help="reboot the actuators (clears latched hardware errors), torque stays off"
+    )
+    reboot.add_argument("--config", type=Path)
+    reboot.add_argument("--json", action="store_true")
+    _add_connection_overrides(reboot)
+
+    bench = sub.add_parser("bench", help="measure the bus or the loop and print figures")
+    bench.add_argument("what", choices=["bus", "loop"])
+    bench.add_argument("--json", action="store_true")
+    bench.add_argument("--cycles", type=int, default=None, help="cycles per measurement")
+
+    sub.add_parser("config", help="print the sample configuration file")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "config":
+            sys.stdout.write(default_config_text())
+            return EXIT_OK
+        if args.command == "emulate":
+            from hil.commands import cmd_emulate
+
+            return cmd_emulate(args)
+        if args.command == "run":
+            from hil.commands import cmd_run
+
+            return cmd_run(args)
+        if args.command == "scan":
+            from hil.commands import cmd_scan
+
+            return cmd_scan(args)
+        if args.command == "reboot":
+            from hil.commands import cmd_reboot
+
+            return cmd_reboot(args)
+        if args.command == "bench":
+            from hil.bench import cmd_bench
+
+            return cmd_bench(args)
+    except ConfigError as exc:
+        print(f"hil: configuration error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("hil: interrupted", file=sys.stderr)
+        return EXIT_FAILED
+    parser.error(f"unknown command {args.command}")
+    return EXIT_USAGE
+
+
+def load_config_or_default(path: Path | None):  # noqa: ANN201
+    return load_config(path)
+
+
+def print_json_line(data: dict) -> None:
+    print(json.dumps(data, default=str))

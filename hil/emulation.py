@@ -1,0 +1,208 @@
+"""From the configuration file to the emulated testbed, and the embedded emulator process.
+
+`emulator_spec()` turns the hardware description (IDs, node IDs, resolutions, mountings, baud)
+plus the [emulator] section and an experiment's world into what `sim_backend` builds.
+`EmbeddedEmulator` runs `hil emulate` as a child process - the very command a user runs in
+another terminal - and reads the endpoints from its first line, so the embedded default and the
+cross-process setup take the same path over the same wire.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from hil.config import Config, ConfigError
+from hil.experiments import Experiment
+from sim_backend.plant import TestbedPlantParams
+from sim_backend.scenario import FaultEvent, PushEvent, Scenario
+from sim_backend.server import EmulatedJointSpec, EmulatorSpec
+from sim_backend.servo import H54ServoParams
+
+STARTUP_TIMEOUT_S = 30.0
+
+
+def experiment_scenario(
+    experiment: Experiment | None, faults: tuple[FaultEvent, ...] = ()
+) -> Scenario:
+    """The world an experiment needs (the block, the pushes) plus injected faults."""
+    if experiment is None:
+        return Scenario(faults=faults)
+    return Scenario(
+        pushes=tuple(
+            PushEvent(p.start_s, p.duration_s, p.force_n, joint=0) for p in experiment.pushes
+        ),
+        faults=faults,
+        obstacle_contact_angle_rad=(
+            experiment.obstacle.contact_angle_rad if experiment.obstacle else None
+        ),
+    )
+
+
+def emulator_spec(
+    config: Config,
+    *,
+    experiment: Experiment | None = None,
+    faults: tuple[FaultEvent, ...] = (),
+    clock: str | None = None,
+    seed: int | None = None,
+) -> EmulatorSpec:
+    emu = config.emulator
+    plant_overrides = dict(emu.plant)
+    if experiment is not None:
+        plant_overrides.setdefault("initial_link_angle_rad", experiment.initial_angle_rad)
+    try:
+        plant = TestbedPlantParams(**plant_overrides)
+        servo = H54ServoParams(**emu.servo)
+    except TypeError as exc:
+        raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
+    except ValueError as exc:
+        raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
+    joints = tuple(
+        EmulatedJointSpec(
+            dxl_id=j.dynamixel_id,
+            encoder_node_id=j.encoder_node_id,
+            encoder_counts_per_rev=j.encoder_counts_per_rev,
+            encoder_direction=j.encoder_direction,
+            encoder_offset_rad=j.encoder_offset_rad,
+            motor_direction=j.motor_direction,
+            motor_offset_rad=j.motor_offset_rad,
+        )
+        for j in config.joints
+    )
+    for fault in faults:
+        if not 0 <= fault.joint < len(joints):
+            raise ConfigError(f"fault {fault.kind}: joint index {fault.joint} out of range")
+    return EmulatorSpec(
+        joints=joints,
+        baudrate=config.dynamixel.baudrate,
+        can_bitrate=config.can.bitrate,
+        force_sensor_node_id=config.force_sensor.node_id,
+        period_s=config.loop.period_s,
+        clock=clock or emu.clock,
+        seed=emu.seed if seed is None else seed,
+        plant=plant,
+        servo=servo,
+        scenario=experiment_scenario(experiment, faults),
+        reboot_time_s=emu.reboot_time_s,
+    )
+
+
+def spec_to_json(spec: EmulatorSpec) -> str:
+    return json.dumps(dataclasses.asdict(spec))
+
+
+def spec_from_json(text: str) -> EmulatorSpec:
+    raw = json.loads(text)
+    plant = dict(raw["plant"])
+    obstacle = plant.pop("obstacle", None)
+    from sim_backend.plant import ObstacleParams
+
+    return EmulatorSpec(
+        joints=tuple(EmulatedJointSpec(**j) for j in raw["joints"]),
+        baudrate=raw["baudrate"],
+        can_bitrate=raw["can_bitrate"],
+        force_sensor_node_id=raw["force_sensor_node_id"],
+        period_s=raw["period_s"],
+        clock=raw["clock"],
+        seed=raw["seed"],
+        plant=TestbedPlantParams(
+            **plant, obstacle=ObstacleParams(**obstacle) if obstacle else None
+        ),
+        servo=H54ServoParams(**raw["servo"]),
+        scenario=Scenario.from_dict(raw["scenario"]),
+        reboot_time_s=raw["reboot_time_s"],
+        heartbeat_ms=raw["heartbeat_ms"],
+    )
+
+
+class EmulatorStartError(RuntimeError):
+    pass
+
+
+class EmbeddedEmulator:
+    """`hil emulate` in a child process; `endpoints` is its first stdout line."""
+
+    def __init__(self, spec: EmulatorSpec) -> None:
+        self.spec = spec
+        self.process: subprocess.Popen[str] | None = None
+        self.endpoints: dict[str, Any] = {}
+        self._spec_file: Path | None = None
+        self._stderr: Any = None
+
+    def start(self) -> dict[str, Any]:
+        fd, name = tempfile.mkstemp(prefix="hil-emulator-", suffix=".json")
+        with os.fdopen(fd, "w") as f:
+            f.write(spec_to_json(self.spec))
+        self._spec_file = Path(name)
+        # stderr goes to a file: a pipe nobody reads could fill up and stall the emulator
+        self._stderr = tempfile.TemporaryFile(mode="w+", prefix="hil-emulator-stderr-")  # noqa: SIM115
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "hil", "emulate", "--spec-file", name],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+            text=True,
+            start_new_session=True,  # a Ctrl-C in the terminal reaches us, and we stop it
+        )
+        line = self._read_first_line()
+        try:
+            self.endpoints = json.loads(line)
+        except json.JSONDecodeError:
+            self.stop()
+            raise EmulatorStartError(
+                f"the emulator printed {line!r} instead of its endpoints"
+            ) from None
+        return self.endpoints
+
+    def _read_first_line(self) -> str:
+        assert self.process is not None and self.process.stdout is not None
+        import selectors
+
+        selector = selectors.DefaultSelector()
+        selector.register(self.process.stdout, selectors.EVENT_READ)
+        if not selector.select(STARTUP_TIMEOUT_S):
+            self.stop()
+            raise EmulatorStartError(f"the emulator did not start within {STARTUP_TIMEOUT_S} s")
+        line = self.process.stdout.readline()
+        if not line:
+            self.process.wait(timeout=5)
+            self._stderr.seek(0)
+            err = self._stderr.read()
+            self.stop()
+            raise EmulatorStartError(f"the emulator exited at start-up:\n{err}")
+        return line
+
+    def stop(self) -> None:
+        process = self.process
+        if process is not None and process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                process.send_signal(signal.SIGTERM)
+            try:
+                process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        if process is not None and process.stdout is not None:
+            process.stdout.close()
+        if getattr(self, "_stderr", None) is not None:
+            self._stderr.close()
+            self._stderr = None
+        if self._spec_file is not None:
+            self._spec_file.unlink(missing_ok=True)
+            self._spec_file = None
+
+    def __enter__(self) -> EmbeddedEmulator:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
