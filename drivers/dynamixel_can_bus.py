@@ -131,12 +131,12 @@ class DynamixelCanBus(JointBus):
             return
         self._closed = True
         errors = []
-        if self.encoders is not None:
+        if self.encoders is not None:  # the reader owns the CAN bus and shuts it down
             try:
                 self.encoders.close()
             except Exception as exc:  # noqa: BLE001 - release everything, report after
                 errors.append(str(exc))
-        if self._can_bus is not None:
+        elif self._can_bus is not None:
             try:
                 self._can_bus.shutdown()
             except Exception as exc:  # noqa: BLE001
