@@ -61,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="default: the config's [controller] name",
     )
     run.add_argument("--kdist", type=float, help="DOB gain Kdist (default: the config's)")
+    run.add_argument(
+        "--composition",
+        choices=["accumulated", "literal"],
+        help="reading of the paper's (25) (default: the config's; see controller/composition.py)",
+    )
     run.add_argument("--config", type=Path, help="configuration file (default: built-in testbed)")
     run.add_argument("--emulate", action="store_true", help="emulate the --config hardware")
     run.add_argument("--realtime", action="store_true", help="pace with the wall clock")
@@ -114,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("what", choices=["bus", "loop"])
     bench.add_argument("--json", action="store_true")
     bench.add_argument("--cycles", type=int, default=None, help="cycles per measurement")
+    bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
 
     sub.add_parser("config", help="print the sample configuration file")
     return parser

@@ -111,6 +111,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hil.session import Session, SessionError
 
     config = load_config(args.config)
+    if args.composition is not None:
+        controller_section = dataclasses.replace(config.controller, composition=args.composition)
+        config = config.with_overrides(controller=controller_section)
     if args.current_guard is not None:
         safety = dataclasses.replace(config.safety, current_guard=args.current_guard == "on")
         config = config.with_overrides(safety=safety)

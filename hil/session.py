@@ -116,11 +116,16 @@ class Session:
         print_result: bool = True,
     ) -> RunResult:
         label = run_label(controller, kdist)
+        literal = self.config.controller.composition == "literal" and "lqr" in controller
+        if literal:
+            label += ", literal (25)"
         if out_dir is None:
             stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
             name = f"{stamp}-{experiment.name}-{controller.replace('+', '-')}"
             if controller == "gc+lqr+dob":
                 name += f"-k{kdist:g}"
+            if literal:
+                name += "-literal"
             out_dir = _unique(self.out_root / name)
         request = RunRequest(
             experiment=experiment,

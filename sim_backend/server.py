@@ -170,6 +170,10 @@ class Emulator:
                 "channel": self.slcan.port_path,
                 "bitrate": self.spec.can_bitrate,
                 "sleep_after_open": 0,
+                # python-can's slcan polls its serial port with this timeout: 0 makes recv()
+                # return at once (it then busy-polls, as dynamixel-sdk does) instead of costing
+                # 1 ms per call, half a lock-step tick.
+                "timeout": 0,
             },
             "encoder_node_ids": [j.encoder_node_id for j in self.spec.joints],
             "force_sensor_node_id": self.spec.force_sensor_node_id or None,

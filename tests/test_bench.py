@@ -1,0 +1,164 @@
+"""`hil bench bus` and `hil bench loop`: the wire-time formula against the protocol's packet
+sizes, and a smoke run of each bench (tiny cycle counts) through `cmd_bench --json`.
+
+The smoke runs check the report's structure and that every figure is positive and finite; they
+assert no timing (this is a shared, noisy 2-core VM). They run the real benches: emulator in a
+child process (`hil emulate`), the unmodified dynamixel-sdk, python-can and canopen. The bench
+widens the driver's reply timeout itself (`with_bench_reply_timeout`), so an emulator stall
+cannot turn into a lost reply here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from controller import CONTROLLER_NAMES
+from hil.bench import (
+    EMULATOR_LINES,
+    JOINT_COUNTS,
+    bus_report_text,
+    cmd_bench,
+    config_with_joints,
+    loop_report_text,
+    sync_cycle_wire_bytes,
+    sync_cycle_wire_time_s,
+)
+from hil.cli import main
+from hil.config import default_config_text, load_config
+
+# The built-in testbed at another baud: the bench must take the configuration it is given.
+CONFIG_AT_4_MBPS = default_config_text().replace("baudrate = 3000000", "baudrate = 4000000")
+
+
+def _positive(value: Any) -> bool:
+    return isinstance(value, int | float) and math.isfinite(value) and value > 0
+
+
+def _one_json_line(capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1, "--json prints exactly one line"
+    return json.loads(out[0])
+
+
+def test_wire_bytes_follow_the_protocol_packet_sizes() -> None:
+    # 6 x H54 reading Present Position .. Present Current (L = 12): SYNC_READ 14 + 6,
+    # replies 6 x (11 + 12), SYNC_WRITE 14 + 6 x 5 = 20 + 138 + 44.
+    assert sync_cycle_wire_bytes(6, 12) == 202
+    # One device, the driver's 15-byte state block: 15 + 26 + 19.
+    assert sync_cycle_wire_bytes(1, 15) == 60
+    # A 2-byte goal instead of 4 saves 2 bytes per device in the SYNC_WRITE only.
+    assert sync_cycle_wire_bytes(6, 12) - sync_cycle_wire_bytes(6, 12, write_bytes=2) == 12
+
+
+@pytest.mark.parametrize(
+    ("baudrate", "return_delay_us", "expected_ms"),
+    [
+        (57_600, 0, 35.07),  # 2020 bits at the factory baud
+        (1_000_000, 0, 2.02),
+        (3_000_000, 0, 0.6733),
+        (4_000_000, 500, 3.505),  # + 6 x the factory Return Delay Time (500 us)
+    ],
+)
+def test_wire_time_is_ten_bits_per_byte_plus_return_delays(
+    baudrate: int, return_delay_us: int, expected_ms: float
+) -> None:
+    time_s = sync_cycle_wire_time_s(6, 12, baudrate, return_delay_us)
+    assert time_s * 1e3 == pytest.approx(expected_ms, rel=1e-3)
+
+
+def test_wire_time_refuses_meaningless_input() -> None:
+    with pytest.raises(ValueError, match="n_devices"):
+        sync_cycle_wire_bytes(0, 12)
+    with pytest.raises(ValueError, match="baudrate_bps > 0"):
+        sync_cycle_wire_time_s(1, 12, 0)
+
+
+def test_config_with_joints_gives_distinct_addresses_and_no_force_sensor() -> None:
+    config = config_with_joints(load_config(None), 12)
+    assert [j.dynamixel_id for j in config.joints] == list(range(1, 13))
+    assert [j.encoder_node_id for j in config.joints] == list(range(5, 17))
+    assert len({j.name for j in config.joints}) == 12
+    assert config.force_sensor.node_id == 0
+    with pytest.raises(ValueError, match="n_joints"):
+        config_with_joints(config, 0)
+
+
+def test_bench_refuses_a_cycle_count_below_one(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "bus", "--cycles", "0"]) == 2
+    assert "--cycles must be >= 1" in capsys.readouterr().err
+
+
+@pytest.mark.timeout(120)
+def test_bench_bus_smoke(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    config_path = tmp_path / "testbed-4mbps.toml"
+    config_path.write_text(CONFIG_AT_4_MBPS)
+    args = argparse.Namespace(what="bus", json=True, cycles=5, config=config_path)
+    assert cmd_bench(args) == 0
+    report = _one_json_line(capsys)
+    assert report["bench"] == "bus" and report["cycles"] == 5
+    assert report["baudrate"] == 4_000_000
+    cases = report["cases"]
+    assert [(c["emulator_line"], c["n_devices"]) for c in cases] == [
+        (line, n) for line in EMULATOR_LINES for n in JOINT_COUNTS
+    ]
+    for case in cases:
+        for loop in ("driver", "bare_sdk"):
+            stats = case[loop]
+            assert stats["cycles"] == 5
+            assert all(_positive(stats[key]) for key in ("median_s", "p90_s", "max_s"))
+            assert stats["median_s"] <= stats["p90_s"] <= stats["max_s"]
+            assert 0 <= stats["failed_reads"] <= 5
+        assert _positive(case["driver_over_bare"])
+        assert case["driver_read_bytes_per_device"] == 15  # the indirect state block
+        assert case["bare_read_bytes_per_device"] == 12  # 611 .. 622
+        assert case["wire_time_driver_s"] > case["wire_time_bare_s"] > 0
+        assert case["wire_time_driver_s"] == pytest.approx(
+            sync_cycle_wire_time_s(case["n_devices"], 15, 4_000_000)
+        )
+        assert case["latency_timer_ms"] >= 10.0
+        assert isinstance(case["failed_starts"], list)
+    text = bus_report_text(report)
+    assert "12  realtime" in text and "ratio" in text
+
+
+@pytest.mark.timeout(120)
+def test_bench_loop_smoke(capsys: pytest.CaptureFixture[str]) -> None:
+    ticks = 10
+    assert main(["bench", "loop", "--json", "--cycles", str(ticks)]) == 0
+    report = _one_json_line(capsys)
+    assert report["bench"] == "loop" and report["period_s"] == pytest.approx(0.005)
+    controllers = report["controllers"]
+    assert [(c["n_joints"], c["controller"]) for c in controllers] == [
+        (n, name) for n in JOINT_COUNTS for name in CONTROLLER_NAMES
+    ]
+    for case in controllers:
+        assert case["ticks"] == ticks
+        assert all(_positive(case[key]) for key in ("median_s", "p99_s", "max_s", "build_s"))
+
+    lockstep = report["lockstep_run"]
+    assert lockstep["termination"] == "completed"
+    stop_cycles = load_config(None).loop.stop_cycles
+    assert lockstep["ticks"] == ticks + stop_cycles
+    # the loop's span: from tick 1 to the last tick
+    assert lockstep["simulated_s"] == pytest.approx((ticks + stop_cycles - 2) * 0.005)
+    assert all(_positive(lockstep[key]) for key in ("loop_wall_s", "real_time_factor"))
+    for part in ("bus_read", "compute_and_write"):
+        assert _positive(lockstep["tick"][part]["median_s"])
+
+    wall = report["wall_clock_run"]
+    assert wall["rate_hz"] == 200.0
+    assert wall["ticks"] >= 3
+    assert wall["period"]["count"] >= 2 and _positive(wall["period"]["median_s"])
+    lateness = wall["lateness"]
+    assert all(math.isfinite(lateness[key]) for key in ("median_s", "p99_s", "max_s"))
+    assert wall["slack"]["count"] >= 1
+    assert wall["overruns"] >= 0 and wall["skipped_ticks"] >= 0
+    assert wall["latency_timer_ms"] >= 10.0
+    text = loop_report_text(report)
+    assert "real-time factor" in text and "lateness" in text
