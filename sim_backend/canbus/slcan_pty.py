@@ -40,13 +40,11 @@ pty whose slave has no open fd reports EIO on the master.
 
 from __future__ import annotations
 
-import contextlib
-import errno
-import os
 import re
-import tty
 
 import can
+
+from sim_backend.pseudo_terminal import RawPty
 
 _BITRATE_COMMANDS = {
     "S0": 10_000,
@@ -107,10 +105,8 @@ class SlcanPty:
         if bus_bitrate <= 0:
             raise ValueError(f"bus_bitrate must be a positive number of bit/s, got {bus_bitrate}")
         self.bus_bitrate = bus_bitrate
-        self._master_fd, self._slave_fd = os.openpty()
-        tty.setraw(self._slave_fd)
-        os.set_blocking(self._master_fd, False)
-        self.port_path: str = os.ttyname(self._slave_fd)
+        self._pty = RawPty()
+        self.port_path: str = self._pty.path
         self._input = bytearray()
         self._output = bytearray()
         self._bitrate: float | None = None  # set by S/s; None until the host sets one
@@ -137,7 +133,7 @@ class SlcanPty:
 
     def fileno(self) -> int:
         """The master fd: readable when the host has written something."""
-        return self._master_fd
+        return self._pty.master_fd
 
     # --- the event-loop API ----------------------------------------------------------------
     def read_frames(self) -> list[can.Message]:
@@ -174,14 +170,9 @@ class SlcanPty:
     def flush_output(self) -> None:
         """Write what the host has not yet taken (the pty buffer may have been full)."""
         while self._output and not self._closed:
-            try:
-                written = os.write(self._master_fd, self._output)
-            except BlockingIOError:
+            written = self._pty.write(self._output)
+            if not written:
                 return
-            except OSError as error:
-                if error.errno in (errno.EAGAIN, errno.EIO):
-                    return
-                raise
             del self._output[:written]
 
     def close(self) -> None:
@@ -189,9 +180,7 @@ class SlcanPty:
         if self._closed:
             return
         self._closed = True
-        for fd in (self._master_fd, self._slave_fd):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._pty.close()
 
     def __enter__(self) -> SlcanPty:
         return self
@@ -201,18 +190,8 @@ class SlcanPty:
 
     # --- internals -------------------------------------------------------------------------
     def _fill_input(self) -> None:
-        while not self._closed:
-            try:
-                chunk = os.read(self._master_fd, 4096)
-            except BlockingIOError:
-                return
-            except OSError as error:
-                if error.errno in (errno.EAGAIN, errno.EIO):
-                    return
-                raise
-            if not chunk:
-                return
-            self._input += chunk
+        if not self._closed:
+            self._input += self._pty.read_available()
 
     def _queue_output(self, data: bytes) -> None:
         if len(self._output) + len(data) <= _MAX_PENDING_OUTPUT_BYTES:

@@ -30,18 +30,17 @@ and stays silent; in realtime mode the same speed times the wire.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import select
 import termios
 import threading
 import time
-import tty
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from sim_backend.dynamixel.chain import DynamixelChain, Reply
 from sim_backend.dynamixel.protocol import PacketParser, ParsedPacket
+from sim_backend.pseudo_terminal import RawPty
 
 _STANDARD_BAUDS = (
     9_600,
@@ -94,20 +93,18 @@ class DynamixelLine:
         self.parser = PacketParser()
         self.stats = LineStats()
         self._pending: list[Reply] = []
-        self._master_fd, self._slave_fd = os.openpty()
-        tty.setraw(self._slave_fd)  # no echo, no CR/LF mapping, no line buffering
-        os.set_blocking(self._master_fd, False)
-        self.port_path: str = os.ttyname(self._slave_fd)
+        self._pty = RawPty()
+        self.port_path: str = self._pty.path
         self._closed = False
 
     def fileno(self) -> int:
         """The pty master: readable when the host has written bytes."""
-        return self._master_fd
+        return self._pty.master_fd
 
     @property
     def line_baud_bps(self) -> int | None:
         """The speed the host set on the port (termios), or None if it is not a standard one."""
-        speed = termios.tcgetattr(self._slave_fd)[5]
+        speed = self._pty.termios_speed()
         return _TERMIOS_SPEED_TO_BPS.get(speed)
 
     def on_readable(self) -> None:
@@ -160,9 +157,7 @@ class DynamixelLine:
         if self._closed:
             return
         self._closed = True
-        for fd in (self._master_fd, self._slave_fd):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._pty.close()
 
     def __enter__(self) -> DynamixelLine:
         return self
@@ -173,20 +168,7 @@ class DynamixelLine:
     # ---------------------------------------------------------------- internals
 
     def _read_available(self) -> bytes:
-        chunks = []
-        while True:
-            try:
-                chunk = os.read(self._master_fd, _READ_CHUNK_BYTES)
-            except (BlockingIOError, InterruptedError):
-                break
-            except OSError:  # EIO: no slave open (cannot happen while we hold ours)
-                break
-            if not chunk:
-                break
-            chunks.append(chunk)
-            if len(chunk) < _READ_CHUNK_BYTES:
-                break
-        data = b"".join(chunks)
+        data = self._pty.read_available(_READ_CHUNK_BYTES)
         self.stats.bytes_in += len(data)
         return data
 
@@ -217,9 +199,8 @@ class DynamixelLine:
     def _write(self, packets: list[bytes]) -> None:
         view = memoryview(b"".join(packets))
         while view:
-            try:
-                written = os.write(self._master_fd, view)
-            except (BlockingIOError, InterruptedError):
+            written = self._pty.write(view)
+            if not written:
                 self.stats.replies_overflowed += len(packets)  # host not reading: dropped
                 return
             view = view[written:]
