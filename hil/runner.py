@@ -2,19 +2,29 @@
 
 A run, tick by tick (every tick reads the bus once, so in lock-step emulation tick k is the
 plant at k periods):
-    tick 0              read; start gate (no hardware error, both encoders valid, a plausible
-                        deflection - wrong zero offsets show up here); torque on (goal = present)
+    tick 0              read; start gate (no hardware error - with --reboot-first: reboot the
+                        actuators that report one and read again -, both encoders valid, a
+                        plausible deflection - wrong zero offsets show up here); torque on
+                        (goal = present)
     ticks 0..S-1        hold the present position (S = [loop] stop_cycles)
-    ticks S..end        controller + supervisor, along the experiment's reference
+    ticks S..S+H-1      only if the link starts away from the experiment's start: slow
+                        re-homing (hil/recovery.py), H ticks, by the actuator's own position
+                        servo (goal = the ramp); the controller and the experiment's time start
+                        after it
+    ticks S+H..end      controller + supervisor, along the experiment's reference
     last S ticks        hold the last goal, then the configured exit torque state
+When the supervisor latches torque_off, the loop turns torque off at once; if the bus does not
+take it (a silent device), it tries again every DISABLE_RETRY_TICKS ticks, not every tick (each
+try costs the driver's timeouts), and on the tick the actuators answer again.
 Every exit path - the end, Ctrl-C, SIGTERM, an exception in the controller or the bus - goes
 through the same `finally`: the configured exit torque state is applied (best effort on every
-joint), the bus is closed, summary.json is written, and the log files are closed. The log is
-line-buffered, so what was logged before a crash is on disk.
+joint, whatever the bus raises), the bus is closed, summary.json is written, and the log files
+are closed. The log is line-buffered, so what was logged before a crash is on disk.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import signal
 import sys
@@ -25,6 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import can
 import numpy as np
 
 from controller import (
@@ -41,10 +52,16 @@ from hil.config import Config
 from hil.experiments import Experiment
 from hil.hardware import current_limit_a
 from hil.metrics import contact_metrics, impact_metrics
+from hil.recovery import HomingPlan, plan_homing
 from hil.runlog import RunLog, read_log
 from hil.supervisor import SafeState, SafetyEvent, Supervisor
 
 START_DEFLECTION_FACTOR = 1.0  # start gate: |deflection| must be below the safety bound
+DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
+# What a bus raises when it is lost: the JointBus contract says BusError, but a port that
+# vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
+# (serial.SerialException is an OSError).
+LOST_BUS_ERRORS = (BusError, can.CanError, OSError)
 
 
 class StartRefused(RuntimeError):
@@ -147,6 +164,8 @@ def run_experiment(
     controller = build_controller(config, request.controller, request.kdist, period)
     total_ticks = int(round(request.run_duration_s / period))
     hold_ticks = config.loop.stop_cycles
+    homing: HomingPlan | None = None
+    homing_ticks = 0
     log = RunLog(request.out_dir, config.joint_names, meta)
     stop = _StopFlag()
     stop.install()
@@ -160,11 +179,17 @@ def run_experiment(
     last_link = np.full(n, math.nan)
     controller_started = False
     zeros = np.zeros(n)
+    disable_retry_tick = 0
+    disable_failures = 0
+    answered_before = True
+    logged_events = logged_notices = 0
     try:
         bus.open()
         opened = True
         log.event(0.0, "open", f"bus open: {', '.join(config.joint_names)}")
-        for k in range(total_ticks + hold_ticks):
+        for k in itertools.count():
+            if k >= total_ticks + hold_ticks:
+                break
             if stop.reason is not None:
                 termination = stop.reason
                 break
@@ -174,35 +199,54 @@ def run_experiment(
             sample = bus.read()
             t_compute = time.perf_counter()
             if k == 0:
-                _start_gate(config, sample, supervisor, request, bus, log)
+                sample = _start_gate(config, sample, supervisor, request, bus, log)
                 bus.enable()
                 torque_on = True
                 hold_goal = sample.motor_angle_rad.copy()
                 last_goal = hold_goal.copy()
                 log.event(time_s, "torque_on", "torque on; holding the present position")
+                homing = plan_homing(sample.link_angle_rad, experiment.reference(0.0))
+                if homing is not None:
+                    homing_ticks = homing.ticks(period)
+                    total_ticks += homing_ticks
+                    log.event(time_s, "homing", homing.describe())
             overrun = _injected_overrun(request.overruns, time_s, period, clock)
             if tick.skipped or overrun:
                 supervisor.note_overrun(k, time_s, tick.skipped)
-            for event in supervisor.observe(k, time_s, sample):
-                log.event(
-                    time_s, event.cause, event.message, joint=event.joint, action=event.action
-                )
-                _print_event(request, event)
+            supervisor.observe(k, time_s, sample)
+            logged_events, logged_notices = _log_safety(
+                supervisor, log, request, logged_events, logged_notices
+            )
             if k == 0:
                 # this tick's sample predates the enable: expect torque from the next one on
                 supervisor.torque_enabled(hold_goal)
-            if supervisor.state == SafeState.TORQUE_OFF and torque_on:
-                torque_on = not _disable(bus, log, time_s, "safety stop")
+            answered = bool(sample.motor_valid.all())
+            if (
+                supervisor.state == SafeState.TORQUE_OFF
+                and torque_on
+                and (k >= disable_retry_tick or (answered and not answered_before))
+            ):
+                why = "safety stop" + (f" (try {disable_failures + 1})" if disable_failures else "")
+                torque_on = not _disable(bus, log, time_s, why, quiet=disable_failures > 0)
                 supervisor.torque_disabled()
-            reference = np.full(n, experiment.reference(time_s))
+                if torque_on:
+                    disable_failures += 1
+                    disable_retry_tick = k + DISABLE_RETRY_TICKS
+            answered_before = answered
+            if homing is not None and k < hold_ticks + homing_ticks:
+                reference = homing.reference((k - hold_ticks) * period)
+            else:
+                reference = np.full(n, experiment.reference(time_s - homing_ticks * period))
             link = np.where(sample.link_valid, sample.link_angle_rad, last_link)
             last_link = link
             proposed = None
-            in_experiment = hold_ticks <= k < total_ticks
+            in_experiment = hold_ticks + homing_ticks <= k < total_ticks
             if k >= total_ticks:
                 proposed = last_goal  # stop cycles: hold the last goal
-            elif not in_experiment:
+            elif k < hold_ticks:
                 proposed = hold_goal
+            elif not in_experiment:
+                proposed = reference  # re-homing: the actuator's own servo follows the ramp
             elif not supervisor.safe and sample.motor_valid.all() and np.isfinite(link).all():
                 if not controller_started:
                     controller.reset(sample.motor_angle_rad, link, reference)
@@ -214,6 +258,9 @@ def run_experiment(
             if goal is not None:
                 bus.write(goal)
                 last_goal = goal
+            logged_events, logged_notices = _log_safety(
+                supervisor, log, request, logged_events, logged_notices
+            )
             t_done = time.perf_counter()
             terms = controller.terms if controller_started else None
             log.write_row(
@@ -248,23 +295,24 @@ def run_experiment(
             tick_index = k + 1
             if on_progress is not None and k % int(round(1.0 / period)) == 0:
                 on_progress(time_s, request.run_duration_s)
-        if termination == "completed" and supervisor.safe:
-            first = supervisor.events[0]
+        if termination == "completed" and supervisor.first_trip is not None:
+            first = supervisor.first_trip
             termination = f"safety stop: {first.cause} ({first.action})"
     except StartRefused as exc:
         termination = f"start refused: {exc}"
         log.event(0.0, "start_refused", str(exc))
-    except BusError as exc:
+    except LOST_BUS_ERRORS as exc:
         termination = f"bus failure: {exc}"
-        log.event(tick_index * period, "bus_failure", str(exc))
+        log.event(tick_index * period, "bus_failure", f"{type(exc).__name__}: {exc}")
     except Exception as exc:
         termination = f"error: {type(exc).__name__}: {exc}"
         log.event(tick_index * period, "error", termination)
         raise
     finally:
+        _log_safety(supervisor, log, request, logged_events, logged_notices)
         exit_notes = _exit_path(config, bus, log, opened, torque_on, tick_index * period)
         stop.restore()
-        metrics = _metrics_or_error(request, log)
+        metrics = _metrics_or_error(request, log, homing_ticks * period)
         summary = {
             "experiment": experiment.name,
             "controller": request.controller,
@@ -274,6 +322,9 @@ def run_experiment(
             "wall_time_s": time.perf_counter() - started,
             "exit": exit_notes,
             "safety_events": [vars(e) for e in supervisor.events],
+            "safety_notices": [vars(e) for e in supervisor.notices],
+            "safety_counters": supervisor.counters(),
+            "homing": homing.to_dict() if homing is not None else None,
             "metrics": metrics,
         }
         log.write_summary(summary)
@@ -295,7 +346,13 @@ def _start_gate(
     request: RunRequest,
     bus: JointBus,
     log: RunLog,
-) -> None:
+) -> JointSample:
+    """Refuse to start (StartRefused, nothing moved) or return the sample to start from.
+
+    With --reboot-first, actuators that report a hardware error are rebooted and the bus is
+    read again (the one extra read of a run: the devices' state changed).
+    """
+    to_reboot = []
     for i, joint in enumerate(config.joints):
         if not sample.motor_valid[i]:
             raise StartRefused(
@@ -307,11 +364,35 @@ def _start_gate(
             if not request.reboot_first:
                 raise StartRefused(
                     f"actuator {joint.dynamixel_id} ({joint.name}) reports "
-                    f"{HardwareError.describe(bits)} (0x{bits:02X}); run `hil reboot` or pass "
-                    "--reboot-first"
+                    f"{HardwareError.describe(bits)} (0x{bits:02X}); remove the cause, then run "
+                    "`hil reboot` or pass --reboot-first"
                 )
-            statuses = bus.reboot([i])
-            log.event(0.0, "reboot", f"rebooted actuator {joint.dynamixel_id}: {statuses}")
+            log.event(
+                0.0,
+                "reboot",
+                f"rebooting actuator {joint.dynamixel_id} ({joint.name}): it reports "
+                f"{HardwareError.describe(bits)} (0x{bits:02X})",
+                joint=joint.name,
+            )
+            to_reboot.append(i)
+    if to_reboot:
+        statuses = bus.reboot(to_reboot)
+        log.event(
+            0.0,
+            "reboot",
+            "after reboot, Hardware Error Status: "
+            + ", ".join(f"ID {i} {HardwareError.describe(b)}" for i, b in statuses.items()),
+        )
+        sample = bus.read()
+        for i, joint in enumerate(config.joints):
+            if not sample.motor_valid[i] or int(sample.hardware_error[i]):
+                raise StartRefused(
+                    f"actuator {joint.dynamixel_id} ({joint.name}) still reports "
+                    f"{HardwareError.describe(int(sample.hardware_error[i]))} after a reboot "
+                    f"(or did not answer: {'; '.join(sample.bus_errors) or 'ok'}): the cause "
+                    "persists (load, temperature, supply voltage?)"
+                )
+    for i, joint in enumerate(config.joints):
         if not sample.link_valid[i]:
             raise StartRefused(
                 f"link encoder node {joint.encoder_node_id} ({joint.name}) did not answer the "
@@ -324,6 +405,7 @@ def _start_gate(
                 f"joint {joint.name}: link minus motor angle is {deflection:+.4f} rad at rest "
                 f"(more than {bound} rad): are encoder_offset_rad and motor_offset_rad set?"
             )
+    return sample
 
 
 def _injected_overrun(
@@ -337,14 +419,40 @@ def _injected_overrun(
     return False
 
 
-def _disable(bus: JointBus, log: RunLog, time_s: float, why: str) -> bool:
+def _disable(bus: JointBus, log: RunLog, time_s: float, why: str, quiet: bool = False) -> bool:
+    """Torque off on every joint; False (and logged, unless `quiet`) if the bus did not take it.
+
+    Any exception counts as a failure: on an exit path a lost port may raise what it likes,
+    and the log must still be completed.
+    """
     try:
         bus.disable()
-    except BusError as exc:
-        log.event(time_s, "torque_off_failed", f"{why}: could not turn torque off: {exc}")
+    except Exception as exc:  # noqa: BLE001 - best effort, reported
+        if not quiet:
+            log.event(time_s, "torque_off_failed", f"{why}: could not turn torque off: {exc}")
         return False
     log.event(time_s, "torque_off", f"{why}: torque off")
     return True
+
+
+def _log_safety(
+    supervisor: Supervisor, log: RunLog, request: RunRequest, events_done: int, notices_done: int
+) -> tuple[int, int]:
+    """Write the supervisor's new events and notices to events.jsonl; returns the new counts."""
+    for event in supervisor.events[events_done:]:
+        log.event(
+            event.time_s,
+            event.cause,
+            event.message,
+            joint=event.joint,
+            action=event.action,
+            state=event.state,
+            tick=event.tick,
+        )
+        _print_event(request, event)
+    for notice in supervisor.notices[notices_done:]:
+        log.event(notice.time_s, notice.kind, notice.message, joint=notice.joint, tick=notice.tick)
+    return len(supervisor.events), len(supervisor.notices)
 
 
 def _exit_path(
@@ -362,7 +470,7 @@ def _exit_path(
             log.event(time_s, "exit_hold", "exit: torque left as it was (on_exit = hold)")
         try:
             bus.close()
-        except BusError as exc:
+        except Exception as exc:  # noqa: BLE001 - best effort, reported
             notes.append(f"close failed: {exc}")
             log.event(time_s, "close_failed", str(exc))
     else:
@@ -370,7 +478,7 @@ def _exit_path(
     return notes
 
 
-def _metrics_or_error(request: RunRequest, log: RunLog) -> dict[str, Any]:
+def _metrics_or_error(request: RunRequest, log: RunLog, homing_s: float = 0.0) -> dict[str, Any]:
     if log.rows < 2:
         return {}
     try:
@@ -380,7 +488,7 @@ def _metrics_or_error(request: RunRequest, log: RunLog) -> dict[str, Any]:
         if experiment.name == "contact":
             return contact_metrics(columns, joint)
         if experiment.name == "impact" and experiment.pushes:
-            return impact_metrics(columns, experiment.pushes[0].start_s, joint)
+            return impact_metrics(columns, experiment.pushes[0].start_s + homing_s, joint)
     except (ValueError, KeyError) as exc:
         return {"error": str(exc)}
     return {}

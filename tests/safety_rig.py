@@ -1,0 +1,196 @@
+"""The safety suite's rig (helpers only; the tests are in the other tests/test_safety_*.py).
+
+Everything runs the real path: `hil emulate` in its own process (hil.emulation.EmbeddedEmulator,
+the command a user runs), our drivers on the wire, the loop of `hil run` (hil.runner), and a
+direct look at the emulated actuator with ROBOTIS's unmodified dynamixel-sdk afterwards (the
+emulator keeps running, so what the device holds can be read back over the bus).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import dataclasses
+import io
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
+
+from hil.cli import main
+from hil.clock import LockstepClock
+from hil.config import Config, load_config
+from hil.emulation import EmbeddedEmulator, emulator_spec
+from hil.experiments import Experiment, get_experiment
+from hil.hardware import Connection, make_bus
+from hil.runlog import read_log
+from hil.runner import RunRequest, RunResult, run_experiment
+from sim_backend.scenario import FaultEvent
+
+PERIOD_S = 0.005
+DXL_ID = 1
+# H54-200-S500-R control table (e-Manual): address, size
+TORQUE_ENABLE = (562, 1)
+HARDWARE_ERROR_STATUS = (892, 1)
+RETURN_DELAY_TIME = (9, 1)
+MAX_POSITION_LIMIT = (36, 4)
+GOAL_POSITION = (596, 4)
+FACTORY_RETURN_DELAY = 250  # e-Manual default; the sample configuration writes 0 at open()
+FACTORY_MAX_POSITION = 250_961
+
+
+@dataclass
+class Run:
+    """One run directory as a user finds it (see hil/runlog.py)."""
+
+    dir: Path
+    summary: dict[str, Any]
+    events: list[dict[str, Any]]
+    columns: dict[str, np.ndarray]
+    exit_code: int | None = None
+
+    @property
+    def termination(self) -> str:
+        return str(self.summary["termination"])
+
+    def trips(self) -> list[dict[str, Any]]:
+        return list(self.summary["safety_events"])
+
+    def first_trip(self) -> dict[str, Any] | None:
+        trips = self.trips()
+        return trips[0] if trips else None
+
+    def notices(self, kind: str) -> list[dict[str, Any]]:
+        return [n for n in self.summary["safety_notices"] if n["kind"] == kind]
+
+    def events_of(self, kind: str) -> list[dict[str, Any]]:
+        return [e for e in self.events if e["kind"] == kind]
+
+
+def load_run(out_dir: Path, exit_code: int | None = None) -> Run:
+    summary = json.loads((out_dir / "summary.json").read_text())
+    events = [json.loads(line) for line in (out_dir / "events.jsonl").read_text().splitlines()]
+    return Run(out_dir, summary, events, read_log(out_dir / "log.csv"), exit_code)
+
+
+def assert_log_complete(run: Run) -> None:
+    """Every file of the run is on disk and whole: one log row per tick the summary counts,
+    no torn line, every event a JSON line, an exit note saying what torque was left in."""
+    text = (run.dir / "log.csv").read_text()
+    assert text.endswith("\n"), "log.csv ends in the middle of a row"
+    rows = list(csv.reader(io.StringIO(text)))
+    header, body = rows[0], rows[1:]
+    assert all(len(row) == len(header) for row in body), "a log row is torn"
+    assert len(body) == run.summary["ticks"], (len(body), run.summary["ticks"])
+    assert [int(row[0]) for row in body] == list(range(len(body)))
+    assert run.summary["exit"], "summary.json does not say what the exit path did"
+    for name in ("meta.json", "timing.csv"):
+        assert (run.dir / name).is_file()
+
+
+def hil_run(out_root: Path, *args: str) -> Run:
+    """`hil run ARGS --no-plots --out OUT_ROOT` in this process; the one run it wrote."""
+    out_root.mkdir(parents=True, exist_ok=True)
+    before = set(out_root.iterdir())
+    with contextlib.redirect_stdout(io.StringIO()):
+        code = main(["run", *args, "--no-plots", "--out", str(out_root)])
+    (out_dir,) = set(out_root.iterdir()) - before
+    return load_run(out_dir, code)
+
+
+def config_with(config: Config | None = None, **safety: Any) -> Config:
+    """The built-in testbed configuration with [safety] keys replaced."""
+    config = config or load_config()
+    return config.with_overrides(safety=dataclasses.replace(config.safety, **safety))
+
+
+@contextlib.contextmanager
+def emulated_testbed(
+    config: Config, experiment: Experiment | str, faults: tuple[FaultEvent, ...] = ()
+) -> Iterator[EmbeddedEmulator]:
+    """`hil emulate` (lock-step) in a child process with the experiment's world."""
+    if isinstance(experiment, str):
+        experiment = get_experiment(experiment)
+    with EmbeddedEmulator(emulator_spec(config, experiment=experiment, faults=faults)) as emulator:
+        yield emulator
+
+
+def run_on(
+    emulator: EmbeddedEmulator,
+    config: Config,
+    experiment: Experiment | str,
+    controller: str,
+    out_dir: Path,
+    *,
+    duration_s: float,
+    kdist: float = 1.0,
+    **request: Any,
+) -> tuple[RunResult, Run]:
+    """The loop of `hil run` (lock-step clock) on an already running emulator."""
+    if isinstance(experiment, str):
+        experiment = get_experiment(experiment)
+    clock = LockstepClock(config.loop.period_s)
+    bus = make_bus(config, Connection.from_endpoints(emulator.endpoints), clock=clock.now)
+    run_request = RunRequest(
+        experiment, controller, kdist, out_dir, duration_s=duration_s, progress=False, **request
+    )
+    result = run_experiment(config, run_request, bus, clock, {"test": True})
+    return result, load_run(out_dir)
+
+
+@dataclass(frozen=True)
+class DeviceState:
+    torque_enabled: int
+    hardware_error: int
+    return_delay_time: int
+    max_position_limit: int
+    goal_position: int
+
+
+class DeviceUnreachable(AssertionError):
+    pass
+
+
+def read_device(endpoints: dict[str, Any], dxl_id: int = DXL_ID) -> DeviceState:
+    """Read the emulated actuator's control table with ROBOTIS's SDK (no driver of ours)."""
+    port = PortHandler(endpoints["dynamixel_port"])
+    assert port.openPort() and port.setBaudRate(int(endpoints["baudrate"]))
+    packet = PacketHandler(2.0)
+    try:
+        values = []
+        for address, size in (
+            TORQUE_ENABLE,
+            HARDWARE_ERROR_STATUS,
+            RETURN_DELAY_TIME,
+            MAX_POSITION_LIMIT,
+            GOAL_POSITION,
+        ):
+            data, result, _error = packet.readTxRx(port, dxl_id, address, size)
+            if result != COMM_SUCCESS:
+                raise DeviceUnreachable(
+                    f"ID {dxl_id} did not answer a READ of {address}: "
+                    f"{packet.getTxRxResult(result)}"
+                )
+            values.append(int.from_bytes(bytes(data), "little", signed=size == 4))
+        return DeviceState(*values)
+    finally:
+        port.closePort()
+
+
+def write_torque(endpoints: dict[str, Any], value: int, dxl_id: int = DXL_ID) -> None:
+    port = PortHandler(endpoints["dynamixel_port"])
+    assert port.openPort() and port.setBaudRate(int(endpoints["baudrate"]))
+    try:
+        result, _error = PacketHandler(2.0).write1ByteTxRx(port, dxl_id, TORQUE_ENABLE[0], value)
+        assert result == COMM_SUCCESS
+    finally:
+        port.closePort()
+
+
+def first_tick(mask: np.ndarray) -> int | None:
+    index = np.flatnonzero(mask)
+    return int(index[0]) if index.size else None

@@ -1,0 +1,247 @@
+"""Every exit path leaves the emulated actuator in the configured torque state (read back over
+the bus with ROBOTIS's SDK after the run) and a complete log on disk: the normal end, Ctrl-C and
+SIGTERM in the middle of a run, an exception in the controller, a lost bus."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from safety_rig import (
+    PERIOD_S,
+    DeviceUnreachable,
+    assert_log_complete,
+    config_with,
+    emulated_testbed,
+    load_run,
+    read_device,
+    run_on,
+    write_torque,
+)
+
+import hil.runner
+from hil.clock import LockstepClock
+from hil.config import load_config
+from hil.experiments import get_experiment
+from hil.hardware import Connection, make_bus
+from hil.runner import RunRequest, run_experiment
+from sim_backend.scenario import parse_fault
+
+
+@pytest.mark.timeout(60)
+def test_normal_end_leaves_torque_off(tmp_path: Path) -> None:
+    config = load_config()
+    with emulated_testbed(config, "impact") as emulator:
+        result, run = run_on(emulator, config, "impact", "gc+lqr+dob", tmp_path, duration_s=1.5)
+        device = read_device(emulator.endpoints)
+    assert result.termination == "completed"
+    assert_log_complete(run)
+    assert run.summary["exit"] == ["torque off"] or run.summary["exit"][0] == "torque off"
+    assert device.torque_enabled == 0 and device.hardware_error == 0
+
+
+@pytest.mark.timeout(60)
+def test_on_exit_hold_leaves_torque_on_holding_the_last_goal(tmp_path: Path) -> None:
+    config = config_with(on_exit="hold")
+    with emulated_testbed(config, "impact") as emulator:
+        result, run = run_on(emulator, config, "impact", "pid", tmp_path, duration_s=0.5)
+        device = read_device(emulator.endpoints)
+        write_torque(emulator.endpoints, 0)
+    assert result.termination == "completed"
+    assert_log_complete(run)
+    assert run.summary["exit"][0] == "torque left on (on_exit = hold)"
+    assert device.torque_enabled == 1
+
+
+class _FailingController:
+    """The run's real controller, with a bug that fires at its `fail_at`-th step."""
+
+    def __init__(self, inner: object, fail_at: int) -> None:
+        self._inner = inner
+        self._fail_at = fail_at
+        self._steps = 0
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._inner, name)
+
+    def step(self, *args: np.ndarray) -> np.ndarray:
+        self._steps += 1
+        if self._steps == self._fail_at:
+            raise ZeroDivisionError("a controller bug (injected by the test)")
+        return self._inner.step(*args)
+
+
+@pytest.mark.timeout(60)
+def test_an_exception_in_the_controller_leaves_torque_off_and_the_log_complete(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    real_build = hil.runner.build_controller
+    monkeypatch.setattr(
+        hil.runner,
+        "build_controller",
+        lambda *args: _FailingController(real_build(*args), fail_at=100),
+    )
+    config = load_config()
+    with emulated_testbed(config, "contact") as emulator:
+        with pytest.raises(ZeroDivisionError):
+            run_on(emulator, config, "contact", "gc+lqr+dob", tmp_path, duration_s=2.0)
+        device = read_device(emulator.endpoints)
+    run = load_run(tmp_path)
+    assert run.termination == "error: ZeroDivisionError: a controller bug (injected by the test)"
+    assert_log_complete(run)
+    assert run.summary["ticks"] == 5 + 99  # stop cycles, then 99 good steps
+    assert run.events_of("error") and run.summary["exit"][0] == "torque off"
+    assert device.torque_enabled == 0
+
+
+@pytest.mark.timeout(60)
+def test_a_lost_bus_ends_the_run_with_a_complete_log_and_says_torque_could_not_be_set(
+    tmp_path: Path,
+) -> None:
+    """The emulator process dies mid-run (as a USB adapter unplugged): the loop ends with a
+    bus failure, no traceback, summary and log written; the exit path tries torque off and
+    reports that it could not."""
+    config = load_config()
+    with emulated_testbed(config, "contact") as emulator:
+
+        def unplug(time_s: float, _total_s: float) -> None:
+            if time_s >= 1.0:
+                os.kill(emulator.process.pid, signal.SIGKILL)
+
+        request_started = time.perf_counter()
+        clock = LockstepClock(PERIOD_S)
+        bus = make_bus(config, Connection.from_endpoints(emulator.endpoints), clock=clock.now)
+        request = RunRequest(
+            get_experiment("contact"), "gc+lqr+dob", 1.0, tmp_path, duration_s=3.0, progress=False
+        )
+        result = run_experiment(config, request, bus, clock, {}, on_progress=unplug)
+        elapsed = time.perf_counter() - request_started
+    assert result.termination.startswith("bus failure")
+    run = load_run(tmp_path)
+    assert_log_complete(run)
+    assert run.summary["ticks"] == round(1.0 / PERIOD_S) + 1
+    assert run.events_of("bus_failure")
+    assert "torque off FAILED" in run.summary["exit"][0]
+    assert elapsed < 10.0
+
+
+@pytest.mark.timeout(60)
+def test_torque_off_reaches_an_actuator_that_was_silent_as_soon_as_it_answers(
+    tmp_path: Path,
+) -> None:
+    config = load_config()
+    fault = parse_fault("silent_id@1.0+0.1")  # 20 ticks; the next planned retry would be later
+    with emulated_testbed(config, "contact", faults=(fault,)) as emulator:
+        result, run = run_on(emulator, config, "contact", "pid", tmp_path, duration_s=1.3)
+        device = read_device(emulator.endpoints)
+    assert result.termination == "safety stop: bus_error (torque_off)"
+    assert_log_complete(run)
+    (back,) = run.notices("bus_recovered")
+    torque_off = run.events_of("torque_off")[0]
+    assert torque_off["time_s"] == pytest.approx(back["time_s"])  # on the tick it answered
+    assert run.events_of("torque_off_failed")  # tried while it was silent
+    assert run.columns["torque_enabled"][back["tick"] + 1] == 0
+    assert device.torque_enabled == 0
+
+
+@pytest.mark.timeout(60)
+def test_a_permanently_silent_actuator_costs_one_read_timeout_per_tick_not_more(
+    tmp_path: Path,
+) -> None:
+    """After the bus_error stop the loop keeps reading (the log goes on), but tries torque off
+    only every DISABLE_RETRY_TICKS ticks: each tick costs one sync-read timeout, and the exit
+    path reports honestly that the device could not be reached (it holds its last goal)."""
+    config = load_config()
+    fault = parse_fault("silent_id@1.0")
+    with emulated_testbed(config, "contact", faults=(fault,)) as emulator:
+        _, run = run_on(emulator, config, "contact", "pid", tmp_path, duration_s=1.1)
+        with pytest.raises(DeviceUnreachable):
+            read_device(emulator.endpoints)
+    assert run.termination == "safety stop: bus_error (torque_off)"
+    assert "torque off FAILED" in run.summary["exit"][0]
+    assert_log_complete(run)
+    failures = run.events_of("torque_off_failed")
+    assert len(failures) == 2  # the first try in the loop (retries are quiet) + the exit
+    with open(run.dir / "timing.csv") as f:
+        cycles = np.array([float(r["cycle_s"]) for r in csv.DictReader(f)])
+    silent = cycles[round(1.0 / PERIOD_S) :]
+    # the driver's sync-read timeout in lock-step: 2 x 50 ms latency + 2 ms margin (+ wire)
+    read_timeout_s = 0.102
+    assert np.median(silent) < 1.3 * read_timeout_s
+    # one torque-off try (write + timeout) per DISABLE_RETRY_TICKS, not one per tick
+    tries = 1 + (len(silent) - 3) // hil.runner.DISABLE_RETRY_TICKS
+    assert silent.sum() < (len(silent) + tries) * 1.3 * read_timeout_s
+
+
+def _wait_for_rows(log: Path, rows: int, process: subprocess.Popen, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.stderr.read() if process.stderr else ""
+        if log.is_file() and log.read_text().count("\n") > rows:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{log} did not reach {rows} rows in {timeout_s} s")
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_in_the_middle_of_a_run_leaves_torque_off_and_the_log_complete(
+    tmp_path: Path, signum: signal.Signals
+) -> None:
+    """`hil run --attach` to a running `hil emulate`, interrupted after ~1 s of 30."""
+    config = load_config()
+    with emulated_testbed(config, "contact") as emulator:
+        out = tmp_path / "runs"
+        command = [
+            sys.executable,
+            "-m",
+            "hil",
+            "run",
+            "contact",
+            "--controller",
+            "gc+lqr+dob",
+            "--duration",
+            "30",
+            "--no-plots",
+            "--attach",
+            json.dumps(emulator.endpoints),
+            "--out",
+            str(out),
+        ]
+        process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        try:
+            _wait_until_a_run_dir(out, process)
+            (run_dir,) = out.iterdir()
+            _wait_for_rows(run_dir / "log.csv", 200, process, timeout_s=30)
+            process.send_signal(signum)
+            _, stderr = process.communicate(timeout=30)
+        finally:
+            if process.poll() is None:
+                process.kill()
+        device = read_device(emulator.endpoints)
+    assert process.returncode == 1, stderr
+    run = load_run(run_dir)
+    assert run.termination == f"interrupted ({signum.name})"
+    assert_log_complete(run)
+    assert 200 <= run.summary["ticks"] < 30 / PERIOD_S
+    assert run.summary["exit"][0] == "torque off"
+    assert run.events_of("torque_off")[-1]["message"] == "exit: torque off"
+    assert device.torque_enabled == 0
+
+
+def _wait_until_a_run_dir(out: Path, process: subprocess.Popen) -> None:
+    deadline = time.monotonic() + 30
+    while not (out.is_dir() and any(out.iterdir())):
+        assert process.poll() is None, process.stderr.read() if process.stderr else ""
+        assert time.monotonic() < deadline, "hil run did not start"
+        time.sleep(0.05)
