@@ -85,9 +85,12 @@ class DynamixelCanBus(JointBus):
         if self.encoders is None:
             raise BusError("read() before open()")
         n = self.n_joints
-        self.encoders.send_sync()
-        link = self.encoders.collect(self.config.link_timeout_s)
-        motor = self.chain.read_state()
+        try:
+            self.encoders.send_sync()
+            link = self.encoders.collect(self.config.link_timeout_s)
+            motor = self.chain.read_state()
+        except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
+            raise BusError(f"the testbed bus failed while reading: {exc}") from exc
         sample = JointSample(
             timestamp_s=link.sync_time_s,
             motor_angle_rad=motor.position_rad,
@@ -112,7 +115,10 @@ class DynamixelCanBus(JointBus):
         return sample
 
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:
-        self.chain.write_goals(goal_motor_angle_rad)
+        try:
+            self.chain.write_goals(goal_motor_angle_rad)
+        except OSError as exc:
+            raise BusError(f"the testbed bus failed while writing goals: {exc}") from exc
 
     def enable(self) -> None:
         self.chain.enable()

@@ -124,6 +124,13 @@ class SafetyConfig:
     on_bus_error: str = "torque_off"
     on_overrun: str = "hold"
     on_exit: str = "torque_off"
+    # The link-encoder noise watch and the overrun window (see hil/supervisor.py WatchTuning)
+    link_noise_jump_rad: float = 1.0e-4
+    link_noise_window_ticks: int = 20
+    link_noise_fraction: float = 0.5
+    overrun_window_s: float = 1.0
+    on_link_noisy: str = "hold"
+    on_command_invalid: str = "hold"
 
 
 @dataclass(frozen=True)
@@ -342,10 +349,27 @@ def _check(config: Config) -> None:
         "on_bus_error",
         "on_overrun",
         "on_exit",
+        "on_link_noisy",
+        "on_command_invalid",
     ):
         if getattr(safety, key) not in REACTIONS:
             raise ConfigError(
                 f"{src} [safety] {key}: {getattr(safety, key)!r} is not one of {list(REACTIONS)}"
             )
+    if not (
+        safety.link_noise_jump_rad > 0
+        and safety.link_noise_window_ticks >= 2
+        and 0 < safety.link_noise_fraction <= 1
+        and safety.overrun_window_s > 0
+    ):
+        raise ConfigError(
+            f"{src} [safety]: link_noise_jump_rad and overrun_window_s must be > 0, "
+            "link_noise_window_ticks >= 2 and link_noise_fraction in (0, 1]"
+        )
+    for key in ("max_goal_rate_rad_s", "max_deflection_rad", "current_guard_time_s"):
+        if not getattr(safety, key) > 0:
+            raise ConfigError(f"{src} [safety] {key}: must be > 0")
+    if not 0 < safety.current_guard_fraction <= 1:
+        raise ConfigError(f"{src} [safety] current_guard_fraction: must be in (0, 1]")
     if config.emulator.clock not in ("lockstep", "realtime"):
         raise ConfigError(f"{src} [emulator] clock: 'lockstep' or 'realtime'")

@@ -48,7 +48,20 @@ from hil.session import run_label
 DPI = 110
 _JOINT_COLUMN = re.compile(r"^link_angle_rad\[(.+)\]$")
 # Events that are routine bookkeeping, not something that happened to the testbed.
-_ROUTINE_EVENTS = frozenset({"open", "torque_on", "close_failed", "exit_hold"})
+_ROUTINE_EVENTS = frozenset(
+    {
+        "open",
+        "torque_on",
+        "close_failed",
+        "exit_hold",
+        # tolerated glitches and limiter notices: up to 20 of each would clutter the plot
+        "bus_glitch",
+        "link_glitch",
+        "bus_recovered",
+        "link_recovered",
+        "goal_limited",
+    }
+)
 
 
 # --- reading a run directory ------------------------------------------------------------------

@@ -54,7 +54,7 @@ from hil.hardware import current_limit_a
 from hil.metrics import contact_metrics, impact_metrics
 from hil.recovery import HomingPlan, plan_homing
 from hil.runlog import RunLog, read_log
-from hil.supervisor import SafeState, SafetyEvent, Supervisor
+from hil.supervisor import SafeState, SafetyEvent, Supervisor, WatchTuning
 
 START_DEFLECTION_FACTOR = 1.0  # start gate: |deflection| must be below the safety bound
 DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
@@ -159,7 +159,18 @@ def run_experiment(
     experiment = request.experiment
     period = clock.period_s
     n = len(config.joints)
-    supervisor = Supervisor(config.safety, config.joints, period, np.array(current_limit_a(config)))
+    safety = config.safety
+    tuning = WatchTuning(
+        link_noise_jump_rad=safety.link_noise_jump_rad,
+        link_noise_window_ticks=safety.link_noise_window_ticks,
+        link_noise_fraction=safety.link_noise_fraction,
+        overrun_window_s=safety.overrun_window_s,
+        on_link_noisy=safety.on_link_noisy,
+        on_command_invalid=safety.on_command_invalid,
+    )
+    supervisor = Supervisor(
+        safety, config.joints, period, np.array(current_limit_a(config)), tuning=tuning
+    )
     supervisor.check_reference(experiment.min_reference_rad, experiment.max_reference_rad)
     controller = build_controller(config, request.controller, request.kdist, period)
     total_ticks = int(round(request.run_duration_s / period))
