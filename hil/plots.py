@@ -357,6 +357,8 @@ def comparison_style(controller: str, kdist: float) -> LineStyle:
         return LineStyle("tab:purple", "--", 1.5, 1.0, True)
     if controller == "gc+lqr":
         return LineStyle("tab:orange", "-", 1.0, 0.5, False)
+    if controller.startswith("gc+lqr+dob/"):  # the other reading of (25)
+        return LineStyle("tab:brown", "-", 1.2, 0.8, False)
     return LineStyle("0.45", "-", 1.0, 0.5, False)
 
 

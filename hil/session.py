@@ -34,6 +34,10 @@ COMPARISON_CONTROLLERS: tuple[tuple[str, float], ...] = (
     ("gc+lqr+dob", 0.5),
     ("gc+lqr+dob", 1.0),
 )
+# The comparison also runs the DOB controller once with the other reading of (25), so that the
+# report shows what the choice of reading does (DESIGN.md: the lab's accumulated total vs the
+# literal uc(tk - dt)). Its rows are keyed "gc+lqr+dob/<reading>".
+OTHER_READING_KDIST = 1.0
 
 
 class SessionError(RuntimeError):
@@ -41,7 +45,10 @@ class SessionError(RuntimeError):
 
 
 def run_label(controller: str, kdist: float) -> str:
-    return f"{controller} (Kdist {kdist:g})" if controller == "gc+lqr+dob" else controller
+    """'gc+lqr+dob (Kdist 1)'; a controller key 'gc+lqr+dob/literal' adds its reading of (25)."""
+    base, _, reading = controller.partition("/")
+    label = f"{base} (Kdist {kdist:g})" if base == "gc+lqr+dob" else base
+    return f"{label}, {reading} (25)" if reading else label
 
 
 @dataclass
@@ -117,7 +124,7 @@ class Session:
     ) -> RunResult:
         label = run_label(controller, kdist)
         literal = self.config.controller.composition == "literal" and "lqr" in controller
-        if literal:
+        if literal and "literal" not in label:
             label += ", literal (25)"
         if out_dir is None:
             stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -244,28 +251,40 @@ class Session:
 
         stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
         root = _unique(self.out_root / f"{stamp}-comparison")
+        default_reading = self.config.controller.composition
+        other_reading = "literal" if default_reading == "accumulated" else "accumulated"
+        entries = [*COMPARISON_CONTROLLERS, (f"gc+lqr+dob/{other_reading}", OTHER_READING_KDIST)]
         plan = [
             (experiment, controller, kdist)
             for experiment in EXPERIMENTS.values()
-            for controller, kdist in COMPARISON_CONTROLLERS
+            for controller, kdist in entries
         ]
         results: list[tuple[Experiment, str, float, RunResult]] = []
         started = time.perf_counter()
-        for number, (experiment, controller, kdist) in enumerate(plan, start=1):
-            self._say(f"[{number}/{len(plan)}] {experiment.name}: {run_label(controller, kdist)}")
+        default_config = self.config
+        for number, (experiment, key, kdist) in enumerate(plan, start=1):
+            self._say(f"[{number}/{len(plan)}] {experiment.name}: {run_label(key, kdist)}")
+            controller, _, reading = key.partition("/")
             name = f"{experiment.name}-{controller.replace('+', '-')}"
             if controller == "gc+lqr+dob":
                 name += f"-k{kdist:g}"
-            result = self.run_one(
-                experiment,
-                controller,
-                kdist,
-                faults=faults,
-                overruns=overruns,
-                out_dir=root / name,
-                print_result=False,
-            )
-            results.append((experiment, controller, kdist, result))
+            if reading:
+                name += f"-{reading}"
+                section = dataclasses.replace(default_config.controller, composition=reading)
+                self.config = default_config.with_overrides(controller=section)
+            try:
+                result = self.run_one(
+                    experiment,
+                    controller,
+                    kdist,
+                    faults=faults,
+                    overruns=overruns,
+                    out_dir=root / name,
+                    print_result=False,
+                )
+            finally:
+                self.config = default_config
+            results.append((experiment, key, kdist, result))
         report = write_report(root, results, self.setup, time.perf_counter() - started)
         print(report.table_text)
         print(f"report: {report.markdown_path}")
