@@ -183,6 +183,22 @@ class JointController(abc.ABC):
         self._phase = "awaiting_applied"
         return goal.copy()
 
+    def resync(self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray) -> None:
+        """Before a step that follows a gap (ticks without a step: a skipped deadline, a failed
+        read). The discrete model differences the samples over one period; without this the gap
+        would read as one period's motion (the DOB would add a spike of ~(gap - 1) x velocity x
+        dt / (Kp dt) for good in the accumulated reading). Call it with the angles the next
+        step() gets; that step then holds the disturbance estimate and reads no increment."""
+        if self._phase != "ready":
+            raise ControllerUsageError(f"{self.name}: resync() is for between ticks, after reset()")
+        self._resync(
+            self._joint_array(motor_angle_rad, "motor_angle_rad"),
+            self._joint_array(link_angle_rad, "link_angle_rad"),
+        )
+
+    @abc.abstractmethod
+    def _resync(self, motor: np.ndarray, link: np.ndarray) -> None: ...
+
     def notify_applied(self, applied_goal_rad: np.ndarray) -> None:
         """The goal actually sent after the last step (clipped or not). Call after every step."""
         if self._phase != "awaiting_applied":
@@ -226,6 +242,9 @@ class _FeedForwardController(JointController):
         self._reference[:] = reference
         self._ug[:] = 0.0
         self._u[:] = motor
+
+    def _resync(self, motor: np.ndarray, link: np.ndarray) -> None:
+        return  # no sample history: u depends on the reference only
 
     def _step(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> np.ndarray:
         self._reference[:] = reference
@@ -304,6 +323,11 @@ class _LqrController(JointController):
         if self._dob is not None:
             self._dob.reset(motor)
         self._composition.reset(motor, self._compensator.input_rad(reference))
+
+    def _resync(self, motor: np.ndarray, link: np.ndarray) -> None:
+        self._estimator.resync(motor, link)
+        if self._dob is not None:
+            self._dob.resync()
 
     def _step(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> np.ndarray:
         self._estimator.update(motor, link)

@@ -141,6 +141,7 @@ class DisturbanceObserver:
         self._filtered = np.zeros(self.n_joints)
         self._raw = np.zeros(self.n_joints)
         self._output = np.zeros(self.n_joints)
+        self._resynced = False
         self.set_kdist(kdist)
 
     @property
@@ -174,9 +175,21 @@ class DisturbanceObserver:
         self._previous_motor_angle[:] = motor_angle_rad
         self._filtered[:] = 0.0
         self._output[:] = 0.0
+        self._resynced = False
+
+    def resync(self) -> None:
+        """After a gap in the samples (a skipped tick, a failed read): the inverse nominal model
+        (10) needs theta_m one period apart, which the next sample does not have. Its update
+        then only restarts the difference from that sample and holds the filtered estimate."""
+        self._resynced = True
 
     def update(self, motor_angle_rad: np.ndarray, sent_command_rad: np.ndarray) -> np.ndarray:
         """d_hat(k) from theta_m(k) and the goal sent at the previous tick, u_sent(k-1)."""
+        if self._resynced:
+            self._resynced = False
+            self._previous_motor_angle[:] = motor_angle_rad
+            np.multiply(self._kdist, self._filtered, out=self._output)
+            return self._output
         raw = self._raw
         # u_hat(k-1) = (theta_m(k) - a theta_m(k-1)) / b, then raw = u_hat - u_sent.
         np.multiply(self._a, self._previous_motor_angle, out=raw)

@@ -106,6 +106,15 @@ class FlexibleJointStateEstimator:
         self._previous_state[:] = self._state
         self._increment[:] = 0.0
 
+    def resync(self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray) -> None:
+        """After a gap in the samples (a skipped tick, a failed read): take these angles as the
+        previous sample, so that the next `update` (with the same angles) reads no motion
+        instead of the whole gap's motion as one period's. The increments of that tick are zero;
+        in the incremental LQR the next tick's catch up with the motion."""
+        n = self.n_joints
+        self._state[:n] = motor_angle_rad
+        self._state[n : 2 * n] = link_angle_rad
+
     def update(self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray) -> np.ndarray:
         """New sample: returns the state x(k); `increment` then holds dx(k)."""
         n = self.n_joints

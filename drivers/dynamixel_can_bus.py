@@ -110,6 +110,7 @@ class DynamixelCanBus(JointBus):
             if not link.valid[i]
         ]
         sample.bus_errors.extend(missing)
+        sample.notes.extend(link.events)
         if link.force is not None:
             sample.extra["contact_force_n"] = link.force.force_n
         return sample
@@ -125,6 +126,12 @@ class DynamixelCanBus(JointBus):
 
     def disable(self) -> None:
         self.chain.disable()
+
+    def current_limits_a(self) -> np.ndarray:
+        devices = self.chain.devices
+        if not devices:
+            return super().current_limits_a()
+        return np.array([device.current_limit_a for device in devices])
 
     def reboot(self, joints: Sequence[int] | None = None) -> dict[int, int]:
         ids = self.chain.dxl_ids

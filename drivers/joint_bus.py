@@ -56,6 +56,7 @@ class JointSample:
     link_valid: np.ndarray  # bool per joint: a fresh link-encoder value arrived this tick
     link_age_s: np.ndarray  # seconds since the last fresh link value (0 when fresh)
     bus_errors: list[str] = field(default_factory=list)  # what went wrong this tick, if anything
+    notes: list[str] = field(default_factory=list)  # bus events worth logging (boot-up, EMCY)
     extra: dict[str, float] = field(default_factory=dict)  # e.g. contact force from a sensor
 
     @classmethod
@@ -125,6 +126,11 @@ class JointBus(abc.ABC):
     @abc.abstractmethod
     def close(self) -> None:
         """Release ports and threads. Safe to call twice."""
+
+    def current_limits_a(self) -> np.ndarray:
+        """Each actuator's current cap [A] as the device reports it (after open()); NaN where
+        the bus cannot tell. The supervisor's overload guard compares the current against it."""
+        return np.full(self.n_joints, np.nan)
 
     def __enter__(self) -> JointBus:
         self.open()

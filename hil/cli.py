@@ -15,11 +15,10 @@ configuration (nothing was sent to any device).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from hil.config import ConfigError, default_config_text, load_config
+from hil.config import ConfigError, default_config_text
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -52,7 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--config FILE: on the hardware FILE describes (add --emulate to emulate it instead).",
     )
     run.add_argument(
-        "experiment", nargs="?", help="contact or impact; omit for the full comparison"
+        "experiment",
+        nargs="?",
+        choices=["contact", "impact"],
+        help="contact or impact; omit for the full comparison",
     )
     run.add_argument(
         "--controller",
@@ -98,7 +100,11 @@ def build_parser() -> argparse.ArgumentParser:
     emulate = sub.add_parser("emulate", help="serve the virtual testbed until interrupted")
     emulate.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
     emulate.add_argument("--realtime", action="store_true", help="wall-clock physics and wire time")
-    emulate.add_argument("--experiment", help="build this experiment's world (block, pushes)")
+    emulate.add_argument(
+        "--experiment",
+        choices=["contact", "impact"],
+        help="build this experiment's world (block, pushes)",
+    )
     emulate.add_argument("--inject", action="append", default=[], metavar="FAULT@T[+D]")
     emulate.add_argument("--seed", type=int)
     emulate.add_argument("--spec-file", type=Path, help=argparse.SUPPRESS)
@@ -160,11 +166,3 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_FAILED
     parser.error(f"unknown command {args.command}")
     return EXIT_USAGE
-
-
-def load_config_or_default(path: Path | None):  # noqa: ANN201
-    return load_config(path)
-
-
-def print_json_line(data: dict) -> None:
-    print(json.dumps(data, default=str))

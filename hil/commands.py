@@ -108,7 +108,9 @@ def _connection_args(args: argparse.Namespace) -> dict:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from hil.runner import StopFlag
     from hil.session import Session, SessionError
+    from hil.supervisor import ReferenceOutsideLimits
 
     config = load_config(args.config)
     if args.composition is not None:
@@ -118,9 +120,43 @@ def cmd_run(args: argparse.Namespace) -> int:
         safety = dataclasses.replace(config.safety, current_guard=args.current_guard == "on")
         config = config.with_overrides(safety=safety)
     faults, overruns = parse_injections(args.inject)
+    overrides = {k: v for k, v in _connection_args(args).items() if v}
+    if args.attach and args.emulate:
+        raise ConfigError(
+            "--attach and --emulate exclude each other: attach to a running "
+            "`hil emulate`, or let `hil run` start its own"
+        )
+    if overrides and args.config is None and not args.attach:
+        raise ConfigError(
+            f"{', '.join('--' + k.replace('_', '-') for k in overrides)} points a hardware "
+            "configuration at other ports: give --config FILE (or --attach for an emulator)"
+        )
+    if args.experiment is None:
+        ignored = [
+            option
+            for option, given in (
+                ("--controller", args.controller is not None),
+                ("--kdist", args.kdist is not None),
+                ("--composition", args.composition is not None),
+                ("--duration", args.duration is not None),
+                ("--reboot-first", args.reboot_first),
+            )
+            if given
+        ]
+        if ignored:
+            raise ConfigError(
+                f"{', '.join(ignored)} apply to one experiment; the comparison (no experiment) "
+                "runs its own plan: name an experiment (contact or impact)"
+            )
     embedded = args.config is None or args.emulate
     if args.attach and embedded and args.config is None:
         embedded = False
+    if args.experiment is None and not embedded and args.attach is None:
+        raise ConfigError(
+            "the comparison drives `pid` into the block until the actuator's overload "
+            "protection trips: it runs only on an emulated testbed (no --config, --emulate, or "
+            "--attach). On hardware, run one experiment at a time: hil run contact --config ..."
+        )
     if faults and not embedded:
         raise ConfigError(
             "--inject of an emulator fault needs the embedded emulator (no --config, or "
@@ -142,13 +178,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         plots=not args.no_plots,
         json_output=args.json,
     )
+    experiment = get_experiment(args.experiment) if args.experiment else None
+    stop = StopFlag()
+    stop.install()
     try:
-        if args.experiment is None:
+        if experiment is None:
             result = session.run_comparison(
-                faults=faults, overruns=overruns, current_guard=args.current_guard == "on"
+                faults=faults,
+                overruns=overruns,
+                current_guard=args.current_guard == "on",
+                stop=stop,
             )
         else:
-            experiment = get_experiment(args.experiment)
             controller = args.controller or config.controller.name
             kdist = args.kdist if args.kdist is not None else config.controller.kdist
             result = session.run_one(
@@ -159,13 +200,16 @@ def cmd_run(args: argparse.Namespace) -> int:
                 overruns=overruns,
                 duration_s=args.duration,
                 reboot_first=args.reboot_first,
+                stop=stop,
             )
     except SessionError as exc:
         print(f"hil run: {exc}", file=sys.stderr)
         return EXIT_FAILED
-    except ValueError as exc:
+    except ReferenceOutsideLimits as exc:
         print(f"hil run: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    finally:
+        stop.restore()
     return EXIT_OK if result.ok else EXIT_FAILED
 
 

@@ -89,7 +89,8 @@ class JointConfig:
 @dataclass(frozen=True)
 class ForceSensorConfig:
     node_id: int = 0  # 0: no force sensor
-    scale: float = 1.0
+    direction: int = 1  # sign from the sensor's reading to a force pressing the link back
+    offset_n: float = 0.0  # the reading with nothing touching (subtracted)
 
 
 @dataclass(frozen=True)
@@ -371,5 +372,7 @@ def _check(config: Config) -> None:
             raise ConfigError(f"{src} [safety] {key}: must be > 0")
     if not 0 < safety.current_guard_fraction <= 1:
         raise ConfigError(f"{src} [safety] current_guard_fraction: must be in (0, 1]")
+    if config.force_sensor.direction not in (1, -1):
+        raise ConfigError(f"{src} [force_sensor] direction: must be 1 or -1")
     if config.emulator.clock not in ("lockstep", "realtime"):
         raise ConfigError(f"{src} [emulator] clock: 'lockstep' or 'realtime'")

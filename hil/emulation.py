@@ -139,10 +139,18 @@ class EmbeddedEmulator:
         self._stderr: Any = None
 
     def start(self) -> dict[str, Any]:
+        """Start the child and read its endpoints; on any failure or interrupt, stop it."""
+        try:
+            return self._start()
+        except BaseException:
+            self.stop()
+            raise
+
+    def _start(self) -> dict[str, Any]:
         fd, name = tempfile.mkstemp(prefix="hil-emulator-", suffix=".json")
+        self._spec_file = Path(name)
         with os.fdopen(fd, "w") as f:
             f.write(spec_to_json(self.spec))
-        self._spec_file = Path(name)
         # stderr goes to a file: a pipe nobody reads could fill up and stall the emulator
         self._stderr = tempfile.TemporaryFile(mode="w+", prefix="hil-emulator-stderr-")  # noqa: SIM115
         self.process = subprocess.Popen(

@@ -9,6 +9,7 @@ fired on such a delay would make the run depend on the machine's load.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -117,6 +118,8 @@ def bus_config(config: Config, connection: Connection) -> DynamixelCanBusConfig:
     if config.force_sensor.node_id:
         force = ForceSensorConfig(
             node_id=config.force_sensor.node_id,
+            direction=config.force_sensor.direction,
+            offset_n=config.force_sensor.offset_n,
             stale_after_s=config.safety.link_stale_ticks * period,
         )
     timeout = config.loop.bus_read_timeout_ms / 1000.0
@@ -145,8 +148,6 @@ def make_bus(
 
 
 def current_limit_a(config: Config) -> list[float]:
-    """The actuators' current caps the supervisor's guard compares against (A)."""
-    factory_limit_a = 620 * 33.0 / 2048.0  # Torque Limit (30) factory value, e-Manual
-    return [
-        j.torque_limit_a if j.torque_limit_a is not None else factory_limit_a for j in config.joints
-    ]
+    """The current caps the configuration sets (A); NaN where it leaves the device's own, which
+    the bus then reports at open (`JointBus.current_limits_a`)."""
+    return [j.torque_limit_a if j.torque_limit_a is not None else math.nan for j in config.joints]

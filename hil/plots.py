@@ -38,9 +38,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from hil.config import JointConfig, load_config
 from hil.experiments import Experiment
-from hil.hardware import current_limit_a
 from hil.metrics import CONTACT_THRESHOLD_N, FIRST_PEAK_WINDOW_S, OVERLOAD_BIT
 from hil.runlog import read_log
 from hil.session import run_label
@@ -129,17 +127,11 @@ def _read_json(path: Path) -> dict[str, Any]:
     return json.loads(path.read_text())
 
 
-def current_limits_a(meta: dict[str, Any]) -> list[float]:
-    """The actuators' current caps of the run, from the configuration meta.json recorded."""
-    config = load_config(None)
-    joint_tables = meta.get("config", {}).get("joints")
-    if joint_tables:
-        known = set(JointConfig.__dataclass_fields__)
-        joints = tuple(
-            JointConfig(**{k: v for k, v in t.items() if k in known}) for t in joint_tables
-        )
-        config = config.with_overrides(joints=joints)
-    return current_limit_a(config)
+def current_limits_a(run: RunData) -> list[float]:
+    """The actuators' current caps in the run [A], as the loop recorded them in summary.json
+    (what the devices reported at open); NaN where unknown."""
+    limits = run.summary.get("current_limit_a") or []
+    return [math.nan if v is None else float(v) for v in limits] or [math.nan]
 
 
 def first_time(time_s: np.ndarray, mask: np.ndarray) -> float | None:
@@ -183,7 +175,7 @@ def _save(figure: Figure, path: Path) -> Path:
 def plot_run(out_dir: Path, experiment: Experiment) -> list[Path]:
     """Draw one run's PNG(s) into its directory; returns the files written."""
     run = load_run(out_dir)
-    limits = current_limits_a(run.meta)
+    limits = current_limits_a(run)
     safety = run.meta.get("config", {}).get("safety", {})
     guard_fraction = safety.get("current_guard_fraction") if safety.get("current_guard") else None
     paths = []

@@ -24,7 +24,6 @@ are closed. The log is line-buffered, so what was logged before a crash is on di
 
 from __future__ import annotations
 
-import itertools
 import math
 import signal
 import sys
@@ -57,6 +56,11 @@ from hil.runlog import RunLog, read_log
 from hil.supervisor import SafeState, SafetyEvent, Supervisor, WatchTuning
 
 START_DEFLECTION_FACTOR = 1.0  # start gate: |deflection| must be below the safety bound
+# The start gate reads again before refusing: the supervisor tolerates a lost reply or TPDO
+# during a run, so one at the first read should not stop the run either. (Each extra read is a
+# SYNC: in lock-step emulation the plant then starts that many periods ahead of tick 0; the
+# widened lock-step timeouts make this practically never happen there.)
+START_READ_ATTEMPTS = 3
 DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
 # What a bus raises when it is lost: the JointBus contract says BusError, but a port that
 # vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
@@ -125,8 +129,12 @@ def build_controller(config: Config, name: str, kdist: float, period_s: float) -
     return make_controller(name, params, sm=sm, dt_s=period_s, gravity=gravity)
 
 
-class _StopFlag:
-    """Set by SIGINT/SIGTERM; the loop checks it every tick and leaves through its `finally`."""
+class StopFlag:
+    """Set by SIGINT/SIGTERM; the loop checks it every tick and leaves through its `finally`.
+
+    A session that runs several experiments installs one for all of them (`hil run` with no
+    experiment stops the whole plan on Ctrl-C); `run_experiment` installs its own otherwise.
+    """
 
     def __init__(self) -> None:
         self.reason: str | None = None
@@ -154,6 +162,7 @@ def run_experiment(
     meta: dict[str, Any],
     *,
     on_progress: Callable[[float, float], None] | None = None,
+    stop: StopFlag | None = None,
 ) -> RunResult:
     """Run one experiment on `bus` (already built, not yet opened). See the module docstring."""
     experiment = request.experiment
@@ -178,8 +187,10 @@ def run_experiment(
     homing: HomingPlan | None = None
     homing_ticks = 0
     log = RunLog(request.out_dir, config.joint_names, meta)
-    stop = _StopFlag()
-    stop.install()
+    own_stop = stop is None
+    if stop is None:
+        stop = StopFlag()
+        stop.install()
     termination = "completed"
     opened = False
     torque_on = False
@@ -192,25 +203,39 @@ def run_experiment(
     zeros = np.zeros(n)
     disable_retry_tick = 0
     disable_failures = 0
+    last_step_tick = -1
+    current_limits = np.full(n, math.nan)
     answered_before = True
     logged_events = logged_notices = 0
     try:
         bus.open()
         opened = True
         log.event(0.0, "open", f"bus open: {', '.join(config.joint_names)}")
-        for k in itertools.count():
-            if k >= total_ticks + hold_ticks:
-                break
+        while tick_index < total_ticks + hold_ticks:
             if stop.reason is not None:
                 termination = stop.reason
                 break
             tick = clock.next_tick()
-            time_s = k * period
+            # The clock's grid index: after a missed deadline the wall clock skips ticks, and
+            # the reference, the faults and the log follow the grid, not the loop's count.
+            k = tick.index
+            time_s = tick.time_s
+            if k >= total_ticks + hold_ticks:
+                break
             t_read = time.perf_counter()
             sample = bus.read()
             t_compute = time.perf_counter()
             if k == 0:
                 sample = _start_gate(config, sample, supervisor, request, bus, log)
+                current_limits = _current_limits(config, bus)
+                supervisor.set_current_limits(current_limits)
+                if config.safety.current_guard and not np.isfinite(current_limits).all():
+                    log.event(
+                        time_s,
+                        "current_guard_inactive",
+                        "the software overload guard cannot act: an actuator's current limit "
+                        "is unknown (set torque_limit_a in the configuration)",
+                    )
                 bus.enable()
                 torque_on = True
                 hold_goal = sample.motor_angle_rad.copy()
@@ -224,6 +249,8 @@ def run_experiment(
             overrun = _injected_overrun(request.overruns, time_s, period, clock)
             if tick.skipped or overrun:
                 supervisor.note_overrun(k, time_s, tick.skipped)
+            for note in sample.notes:
+                log.event(time_s, "bus_note", note, tick=k)
             supervisor.observe(k, time_s, sample)
             logged_events, logged_notices = _log_safety(
                 supervisor, log, request, logged_events, logged_notices
@@ -262,7 +289,10 @@ def run_experiment(
                 if not controller_started:
                     controller.reset(sample.motor_angle_rad, link, reference)
                     controller_started = True
+                elif k - last_step_tick > 1:  # ticks without a step: do not read them as motion
+                    controller.resync(sample.motor_angle_rad, link)
                 proposed = controller.step(sample.motor_angle_rad, link, reference)
+                last_step_tick = k
             goal = supervisor.command(proposed, sample) if torque_on else None
             if proposed is not None and in_experiment and controller_started:
                 controller.notify_applied(goal if goal is not None else proposed)
@@ -322,7 +352,8 @@ def run_experiment(
     finally:
         _log_safety(supervisor, log, request, logged_events, logged_notices)
         exit_notes = _exit_path(config, bus, log, opened, torque_on, tick_index * period)
-        stop.restore()
+        if own_stop:
+            stop.restore()
         metrics = _metrics_or_error(request, log, homing_ticks * period)
         summary = {
             "experiment": experiment.name,
@@ -336,6 +367,7 @@ def run_experiment(
             "safety_notices": [vars(e) for e in supervisor.notices],
             "safety_counters": supervisor.counters(),
             "homing": homing.to_dict() if homing is not None else None,
+            "current_limit_a": current_limits.tolist(),
             "metrics": metrics,
         }
         log.write_summary(summary)
@@ -348,6 +380,13 @@ def run_experiment(
         tick_index,
         time.perf_counter() - started,
     )
+
+
+def _current_limits(config: Config, bus: JointBus) -> np.ndarray:
+    """What the actuators report (read at open), else what the configuration sets."""
+    reported = np.asarray(bus.current_limits_a(), dtype=float)
+    configured = np.array(current_limit_a(config))
+    return np.where(np.isfinite(reported), reported, configured)
 
 
 def _start_gate(
@@ -363,6 +402,15 @@ def _start_gate(
     With --reboot-first, actuators that report a hardware error are rebooted and the bus is
     read again (the one extra read of a run: the devices' state changed).
     """
+    for attempt in range(1, START_READ_ATTEMPTS):
+        if sample.motor_valid.all() and sample.link_valid.all():
+            break
+        log.event(
+            0.0,
+            "start_retry",
+            f"first read incomplete ({'; '.join(sample.bus_errors)}): reading again ({attempt})",
+        )
+        sample = bus.read()
     to_reboot = []
     for i, joint in enumerate(config.joints):
         if not sample.motor_valid[i]:
@@ -408,6 +456,13 @@ def _start_gate(
             raise StartRefused(
                 f"link encoder node {joint.encoder_node_id} ({joint.name}) did not answer the "
                 "first SYNC"
+            )
+        motor = float(sample.motor_angle_rad[i])
+        if not joint.min_angle_rad <= motor <= joint.max_angle_rad:
+            raise StartRefused(
+                f"joint {joint.name}: the motor stands at {motor:+.4f} rad, outside the joint's "
+                f"range [{joint.min_angle_rad:+.3f}, {joint.max_angle_rad:+.3f}] rad: move it "
+                "inside by hand (torque is off), or widen the range in the configuration"
             )
         deflection = float(sample.link_angle_rad[i] - sample.motor_angle_rad[i])
         bound = START_DEFLECTION_FACTOR * config.safety.max_deflection_rad

@@ -3,8 +3,8 @@
 Three setups, one code path for the loop:
     embedded (no --config, or --emulate)  a fresh `hil emulate` child per run, lock-step clock
                                           (deterministic) or, with --realtime, wall clock
-    attached (--attach or port overrides) a `hil emulate` someone started: wall clock
-    hardware (--config FILE)              the ports FILE names: wall clock
+    attached (--attach JSON)              a `hil emulate` someone started: wall clock
+    hardware (--config FILE [--port ...]) the ports FILE names (or the overrides): wall clock
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from hil.config import Config
 from hil.emulation import EmbeddedEmulator, EmulatorStartError, emulator_spec
 from hil.experiments import EXPERIMENTS, Experiment
 from hil.hardware import Connection, make_bus
-from hil.runner import RunRequest, RunResult, run_experiment
+from hil.runner import RunRequest, RunResult, StopFlag, run_experiment
 from sim_backend.scenario import FaultEvent
 
 COMPARISON_CONTROLLERS: tuple[tuple[str, float], ...] = (
@@ -38,6 +38,10 @@ COMPARISON_CONTROLLERS: tuple[tuple[str, float], ...] = (
 # report shows what the choice of reading does (DESIGN.md: the lab's accumulated total vs the
 # literal uc(tk - dt)). Its rows are keyed "gc+lqr+dob/<reading>".
 OTHER_READING_KDIST = 1.0
+
+
+# How a run can end without having run its course (a safety stop is a result, not these).
+INCOMPLETE = ("interrupted", "start refused", "bus failure", "error")
 
 
 class SessionError(RuntimeError):
@@ -91,13 +95,13 @@ class Session:
             )
             emulator = EmbeddedEmulator(spec)
             try:
-                endpoints = emulator.start()
-            except EmulatorStartError as exc:
-                raise SessionError(f"could not start the emulated testbed: {exc}") from exc
-            try:
+                try:
+                    endpoints = emulator.start()
+                except EmulatorStartError as exc:
+                    raise SessionError(f"could not start the emulated testbed: {exc}") from exc
                 yield Connection.from_endpoints(endpoints)
             finally:
-                emulator.stop()
+                emulator.stop()  # also after Ctrl-C during start-up: no child left behind
         elif self.attach is not None:
             yield Connection.from_endpoints(self.attach).with_overrides(**overrides)
         else:
@@ -121,6 +125,7 @@ class Session:
         reboot_first: bool = False,
         out_dir: Path | None = None,
         print_result: bool = True,
+        stop: StopFlag | None = None,
     ) -> RunResult:
         label = run_label(controller, kdist)
         literal = self.config.controller.composition == "literal" and "lqr" in controller
@@ -151,7 +156,13 @@ class Session:
             bus_clock = clock.now if isinstance(clock, LockstepClock) else time.monotonic
             bus = make_bus(self.config, connection, clock=bus_clock)
             result = run_experiment(
-                self.config, request, bus, clock, meta, on_progress=self._progress(label)
+                self.config,
+                request,
+                bus,
+                clock,
+                meta,
+                on_progress=self._progress(label),
+                stop=stop,
             )
         if self.plots and result.ticks > 1:
             from hil.plots import plot_run
@@ -236,6 +247,7 @@ class Session:
         faults: tuple[FaultEvent, ...] = (),
         overruns: tuple[tuple[float, float], ...] = (),
         current_guard: bool = False,
+        stop: StopFlag | None = None,
     ) -> RunResult:
         """Both experiments x the paper's controllers, then one report.
 
@@ -262,7 +274,11 @@ class Session:
         results: list[tuple[Experiment, str, float, RunResult]] = []
         started = time.perf_counter()
         default_config = self.config
+        interrupted: str | None = None
         for number, (experiment, key, kdist) in enumerate(plan, start=1):
+            if stop is not None and stop.reason is not None:
+                interrupted = stop.reason
+                break
             self._say(f"[{number}/{len(plan)}] {experiment.name}: {run_label(key, kdist)}")
             controller, _, reading = key.partition("/")
             name = f"{experiment.name}-{controller.replace('+', '-')}"
@@ -281,17 +297,23 @@ class Session:
                     overruns=overruns,
                     out_dir=root / name,
                     print_result=False,
+                    stop=stop,
                 )
             finally:
                 self.config = default_config
             results.append((experiment, key, kdist, result))
+            if result.termination.startswith(INCOMPLETE):
+                interrupted = interrupted or f"{experiment.name} / {key}: {result.termination}"
+                if result.termination.startswith("interrupted"):
+                    break
         report = write_report(root, results, self.setup, time.perf_counter() - started)
         print(report.table_text)
         print(f"report: {report.markdown_path}")
         if self.json_output:
             print(json.dumps(report.summary, default=str))
-        failed = [r for *_, r in results if r.termination.startswith(("bus failure", "error"))]
-        return RunResult(root, "completed" if not failed else failed[0].termination, {})
+        if interrupted is not None:
+            print(f"comparison incomplete: {interrupted}")
+        return RunResult(root, "completed" if interrupted is None else interrupted, {})
 
 
 def _unique(path: Path) -> Path:

@@ -55,6 +55,10 @@ from hil.config import REACTIONS, JointConfig, SafetyConfig
 MAX_NOTICES_PER_KIND = 20  # per joint and kind; later ones are only counted (summary.json)
 
 
+class ReferenceOutsideLimits(ValueError):
+    """An experiment's reference leaves a joint's range: refused before any port is opened."""
+
+
 class SafeState(enum.IntEnum):
     """The supervisor's state, ordered by severity."""
 
@@ -206,10 +210,7 @@ class Supervisor:
             raise ValueError(
                 f"max_goal_rate_rad_s must be > 0, got {self.safety.max_goal_rate_rad_s}"
             )
-        limit = np.broadcast_to(np.asarray(self.current_limit_a, dtype=float), (n,)).copy()
-        if not np.all(limit > 0):
-            raise ValueError(f"current limits must be > 0 A, got {limit}")
-        self.current_limit_a = limit
+        self.set_current_limits(self.current_limit_a)
         window = self.tuning.link_noise_window_ticks
         self._watch = [_JointWatch(noise_jumps=np.zeros(window, dtype=bool)) for _ in range(n)]
         self._noise_trip_count = math.ceil(self.tuning.link_noise_fraction * window)
@@ -375,7 +376,7 @@ class Supervisor:
         if not s.current_guard:
             return
         w = self._watch[i]
-        near = current_a >= s.current_guard_fraction * self.current_limit_a[i]
+        near = current_a >= s.current_guard_fraction * self.current_limit_a[i]  # False if NaN
         step = self.period_s if near else -self.period_s
         w.overload_timer_s = max(0.0, w.overload_timer_s + step)
         if w.overload_timer_s >= s.current_guard_time_s - 1e-9:
@@ -616,15 +617,24 @@ class Supervisor:
             base = base - push * self.safety.current_guard_backoff_rad
         return np.clip(base, self.min_goal, self.max_goal)
 
+    def set_current_limits(self, limits_a: np.ndarray) -> None:
+        """The actuators' current caps [A] the overload guard compares against (the devices
+        report them at open). NaN: unknown, the guard cannot act on that joint."""
+        n = len(self.joints)
+        limit = np.broadcast_to(np.asarray(limits_a, dtype=float), (n,)).copy()
+        if np.any(limit <= 0):
+            raise ValueError(f"current limits must be > 0 A, got {limit}")
+        self.current_limit_a = limit
+
     def check_reference(self, reference_min: float, reference_max: float) -> None:
         """Refuse an experiment whose reference leaves a joint's limits (before anything moves)."""
         if not (math.isfinite(reference_min) and math.isfinite(reference_max)):
-            raise ValueError(
+            raise ReferenceOutsideLimits(
                 f"the reference spans [{reference_min}, {reference_max}] rad: not finite"
             )
         for joint in self.joints:
             if reference_min < joint.min_angle_rad or reference_max > joint.max_angle_rad:
-                raise ValueError(
+                raise ReferenceOutsideLimits(
                     f"the reference spans [{reference_min:+.3f}, {reference_max:+.3f}] rad, "
                     f"beyond joint {joint.name!r}'s limits [{joint.min_angle_rad:+.3f}, "
                     f"{joint.max_angle_rad:+.3f}] rad: nothing was sent; shorten the "

@@ -46,6 +46,7 @@ from drivers.dynamixel.state import DeviceInfo, DynamixelState, HardwareErrorSta
 from drivers.dynamixel.state_block import STATE_BLOCK_ITEMS, StateBlockLayout
 from drivers.dynamixel.units import (
     current_a_to_torque_estimate_nm,
+    current_limit_raw_to_a,
     current_to_a,
     input_voltage_to_v,
     position_to_rad,
@@ -488,6 +489,7 @@ class DynamixelChain:
         for joint in self._joints:
             configure.apply_ram_settings(io, joint, self.spec)
         shutdown_item = self.spec.item("Shutdown")
+        torque_limit_item = self.spec.item("Torque Limit")
         self.devices = tuple(
             DeviceInfo(
                 dxl_id=dxl_id,
@@ -497,6 +499,9 @@ class DynamixelChain:
                 hardware_error=self.read_hardware_error(dxl_id).bits,
                 torque_enabled=torque_on[dxl_id],
                 eeprom_changes=tuple(write.description for write in plans[dxl_id]),
+                current_limit_a=current_limit_raw_to_a(
+                    io.read_item(dxl_id, torque_limit_item), self.spec.units
+                ),
             )
             for dxl_id in self._ids
         )

@@ -65,3 +65,4 @@ class DeviceInfo:
     hardware_error: int  # Hardware Error Status (892) at open
     torque_enabled: bool  # after open() (open never turns torque on)
     eeprom_changes: tuple[str, ...]  # e.g. "Operating Mode 4 -> 3"
+    current_limit_a: float  # Torque Limit (30) after open(), in A: the servo's current cap
