@@ -20,8 +20,13 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from drivers.dynamixel.units import H54_200_S500_R_UNITS
+
 DEFAULT_CONFIG_NAME = "testbed.toml"
-H54_POSITION_RANGE_RAD = math.pi * 250_961 / (501_923 / 2)  # +-250,961 pulses (e-Manual)
+# The actuator's position-mode range, from the driver's unit table (device units live there).
+H54_POSITION_RANGE_RAD = (
+    H54_200_S500_R_UNITS.position_limit_pulses * H54_200_S500_R_UNITS.rad_per_pulse
+)
 
 
 class ConfigError(ValueError):

@@ -82,7 +82,6 @@ class RunRequest:
     overruns: tuple[tuple[float, float], ...] = ()  # injected loop overruns (start, duration)
     reboot_first: bool = False
     progress: bool = True
-    label: str = ""
 
     @property
     def run_duration_s(self) -> float:
