@@ -34,6 +34,7 @@ Faults (`SensorFault`, mutable, looked at on every call):
 
 from __future__ import annotations
 
+import abc
 import math
 import struct
 from dataclasses import dataclass
@@ -112,7 +113,7 @@ def _to_microseconds(now_s: float) -> int:
     return round(now_s * 1_000_000)
 
 
-class CanopenSlave:
+class CanopenSlave(abc.ABC):
     """Base of the emulated nodes; a subclass supplies the process value (`_ideal_raw`).
 
     A subclass sets its own attributes before calling `super().__init__`, which powers the
@@ -222,15 +223,15 @@ class CanopenSlave:
         return out
 
     # --- for subclasses --------------------------------------------------------------------
+    @abc.abstractmethod
     def _ideal_raw(self) -> float:
         """Process value in the device's raw units before rounding, without faults."""
-        raise NotImplementedError
 
-    def _reset_application(self) -> None:
+    def _reset_application(self) -> None:  # noqa: B027 - an optional hook
         """Device-specific state back to power-on (reset node / power cycle)."""
 
-    def _on_object_written(self, index: int, subindex: int, value: Any) -> None:
-        """A device object was written by SDO (after validation and storage)."""
+    def _on_object_written(self, index: int, subindex: int, value: Any) -> None:  # noqa: B027
+        """A device object was written by SDO (after validation and storage); optional hook."""
 
     # --- process value ---------------------------------------------------------------------
     def _sample_raw(self) -> int:
