@@ -62,9 +62,7 @@ def emulator_spec(
     try:
         plant = TestbedPlantParams(**plant_overrides)
         servo = H54ServoParams(**emu.servo)
-    except TypeError as exc:
-        raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
-    except ValueError as exc:
+    except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
         raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
     joints = tuple(
         EmulatedJointSpec(

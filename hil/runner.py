@@ -200,6 +200,7 @@ def run_experiment(
     last_link = np.full(n, math.nan)
     controller_started = False
     zeros = np.zeros(n)
+    no_goal = np.full(n, math.nan)  # logged on ticks that send nothing (read-only, never written)
     disable_retry_tick = 0
     disable_failures = 0
     last_step_tick = -1
@@ -315,7 +316,7 @@ def run_experiment(
                 },
                 {
                     "reference_rad": reference,
-                    "goal_rad": goal if goal is not None else np.full(n, math.nan),
+                    "goal_rad": goal if goal is not None else no_goal,
                     "motor_angle_rad": sample.motor_angle_rad,
                     "link_angle_rad": sample.link_angle_rad,
                     "deflection_rad": sample.link_angle_rad - sample.motor_angle_rad,
