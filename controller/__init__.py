@@ -8,6 +8,7 @@ controllers the loop runs ("pid", "gc", "gc+lqr", "gc+lqr+dob"). Imports nothing
 from controller.composition import COMPOSITION_READINGS, Composition, CompositionReading
 from controller.controllers import (
     CONTROLLER_NAMES,
+    ControllerKind,
     ControllerParams,
     ControllerUsageError,
     ControlTerms,
@@ -49,6 +50,7 @@ __all__ = [
     "Composition",
     "CompositionReading",
     "ControlTerms",
+    "ControllerKind",
     "ControllerParams",
     "ControllerUsageError",
     "DisturbanceObserver",

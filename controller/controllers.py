@@ -18,6 +18,7 @@ motor angle. Calling out of this order raises `ControllerUsageError`.
 from __future__ import annotations
 
 import abc
+import enum
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,7 +42,26 @@ from controller.model import (
     validate_sm,
 )
 
-CONTROLLER_NAMES: tuple[str, ...] = ("pid", "gc", "gc+lqr", "gc+lqr+dob")
+
+
+class ControllerKind(enum.StrEnum):
+    """The four controllers of Sec. IV; the value is the name users type (`--controller`)."""
+
+    PID = "pid"
+    GC = "gc"
+    GC_LQR = "gc+lqr"
+    GC_LQR_DOB = "gc+lqr+dob"
+
+    @property
+    def has_dob(self) -> bool:
+        return self is ControllerKind.GC_LQR_DOB
+
+    @property
+    def has_lqr(self) -> bool:
+        return self in (ControllerKind.GC_LQR, ControllerKind.GC_LQR_DOB)
+
+
+CONTROLLER_NAMES: tuple[str, ...] = tuple(kind.value for kind in ControllerKind)
 
 
 class ControllerUsageError(RuntimeError):
@@ -379,6 +399,7 @@ def make_controller(
     """
     if name not in CONTROLLER_NAMES:
         raise ValueError(f"unknown controller {name!r}; expected one of {CONTROLLER_NAMES}")
+    kind = ControllerKind(name)
     if not isinstance(params, ControllerParams):
         raise TypeError(f"params must be ControllerParams, got {type(params).__name__}")
     if not (np.isfinite(dt_s) and dt_s > 0):
@@ -393,9 +414,9 @@ def make_controller(
             f"gravity model returns shape {probe.shape} for {n} joints; expected ({n},)"
         )
     compensator = GravityCompensator(gravity, params.joints.stiffness_nm_per_rad)
-    if name == "pid":
-        return _FeedForwardController(name, n, None)
-    if name == "gc":
-        return _FeedForwardController(name, n, compensator)
+    if kind is ControllerKind.PID:
+        return _FeedForwardController(kind.value, n, None)
+    if kind is ControllerKind.GC:
+        return _FeedForwardController(kind.value, n, compensator)
     gain = params.design_gain(sm, dt_s)
-    return _LqrController(name, params, gain, dt_s, compensator, use_dob=name == "gc+lqr+dob")
+    return _LqrController(kind.value, params, gain, dt_s, compensator, use_dob=kind.has_dob)

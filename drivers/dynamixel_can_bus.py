@@ -1,13 +1,18 @@
-"""The testbed's JointBus: Dynamixel Pro actuators on RS-485 + link encoders on CAN.
+"""The robot's JointBus: Dynamixel Pro chains on RS-485 + link encoders on CAN.
+
+A robot may have several of each: one `DynamixelChain` per serial port and one
+`LinkEncoderReader` per CAN channel. `BusLayout` says, once, which chain slot and which encoder
+slot each joint uses (the idea of vulp's `ServoLayout`); everything else works per joint.
 
 One tick reads in this order, on hardware and on the emulated testbed alike:
-    1. SYNC on CAN: every link encoder latches its position (and the force sensor its force);
-    2. collect the TPDOs that answer this SYNC (bounded wait);
-    3. one Dynamixel sync read of the state block (position, velocity, current, hardware error
-       status, torque enable).
+    1. SYNC on every CAN channel: every link encoder latches its position (and a force sensor
+       its force);
+    2. collect the TPDOs that answer each SYNC (bounded wait);
+    3. one Dynamixel sync read of the state block per chain (position, velocity, current,
+       hardware error status, torque enable).
 The encoders answer before the actuators are read because the emulated testbed advances its
 physics on SYNC in lock-step mode; on hardware the two readings are then ~0.5 ms apart.
-`write()` is one Dynamixel sync write of the goal positions.
+`write()` is one Dynamixel sync write of the goal positions per chain.
 """
 
 from __future__ import annotations
@@ -21,142 +26,289 @@ import can
 import numpy as np
 
 from drivers.canbus import ForceSensorConfig, LinkEncoderConfig, LinkEncoderReader
-from drivers.dynamixel import DynamixelChain, DynamixelChainConfig
-from drivers.joint_bus import BusError, JointBus, JointSample
+from drivers.dynamixel import DynamixelChain, DynamixelChainConfig, actuator_fault
+from drivers.joint_bus import (
+    ActuatorFault,
+    BusError,
+    BusFault,
+    DeviceRole,
+    JointBus,
+    JointDevices,
+    JointSample,
+)
+
+
+@dataclass(frozen=True)
+class CanChannelConfig:
+    """One CAN channel: how to open it (`can.Bus(**bus_kwargs)`) and the sensors on it."""
+
+    name: str
+    bus_kwargs: dict[str, Any]
+    encoders: tuple[LinkEncoderConfig, ...]
+    force_sensor: ForceSensorConfig | None = None
+
+    @property
+    def description(self) -> str:
+        return f"{self.bus_kwargs.get('interface')}:{self.bus_kwargs.get('channel')}"
+
+
+@dataclass(frozen=True)
+class BusLayout:
+    """Which device serves which joint: (chain, slot) for the actuator, (channel, slot) for
+    the link encoder, per joint in `joint_names` order. Built from the device names."""
+
+    joint_names: tuple[str, ...]
+    actuator_slot: tuple[tuple[int, int], ...]
+    encoder_slot: tuple[tuple[int, int], ...]
+
+    @classmethod
+    def from_names(
+        cls,
+        joint_names: Sequence[str],
+        chains: Sequence[DynamixelChainConfig],
+        channels: Sequence[CanChannelConfig],
+    ) -> BusLayout:
+        actuators = {
+            joint.name: (c, s)
+            for c, chain in enumerate(chains)
+            for s, joint in enumerate(chain.joints)
+        }
+        encoders = {
+            enc.name: (c, s)
+            for c, channel in enumerate(channels)
+            for s, enc in enumerate(channel.encoders)
+        }
+        names = tuple(joint_names)
+        for what, table, count in (
+            ("actuator", actuators, sum(len(c.joints) for c in chains)),
+            ("link encoder", encoders, sum(len(c.encoders) for c in channels)),
+        ):
+            missing = [name for name in names if name not in table]
+            extra = sorted(set(table) - set(names))
+            if missing or extra or count != len(names):
+                raise ValueError(
+                    f"every joint needs exactly one {what}: joints {list(names)}, "
+                    f"{what}s named {sorted(table)}"
+                    + (f"; missing for {missing}" if missing else "")
+                    + (f"; not a joint: {extra}" if extra else "")
+                )
+        return cls(names, tuple(actuators[n] for n in names), tuple(encoders[n] for n in names))
+
+    def joints_of_chain(self, chain: int) -> np.ndarray:
+        """Joint indices of a chain's slots, in slot order."""
+        pairs = sorted((slot, j) for j, (c, slot) in enumerate(self.actuator_slot) if c == chain)
+        return np.array([j for _, j in pairs], dtype=np.intp)
+
+    def joints_of_channel(self, channel: int) -> np.ndarray:
+        pairs = sorted((slot, j) for j, (c, slot) in enumerate(self.encoder_slot) if c == channel)
+        return np.array([j for _, j in pairs], dtype=np.intp)
 
 
 @dataclass(frozen=True)
 class DynamixelCanBusConfig:
-    """Everything the testbed bus needs; `hil` builds it from the configuration file."""
+    """Everything the robot's bus needs; `hil` builds it from the configuration file."""
 
     joint_names: tuple[str, ...]
-    dynamixel: DynamixelChainConfig
-    encoders: tuple[LinkEncoderConfig, ...]
-    can_bus_kwargs: dict[str, Any] = field(default_factory=dict)
-    force_sensor: ForceSensorConfig | None = None
+    chains: tuple[DynamixelChainConfig, ...]
+    can_channels: tuple[CanChannelConfig, ...]
     link_timeout_s: float = 0.002  # how long a tick waits for the TPDOs after SYNC
     allow_torque_off: bool = False  # may open() turn torque off to rewrite EEPROM items?
+    layout: BusLayout = field(init=False)
 
     def __post_init__(self) -> None:
-        n = len(self.joint_names)
-        if len(self.dynamixel.joints) != n or len(self.encoders) != n:
-            raise ValueError(
-                f"{n} joints but {len(self.dynamixel.joints)} actuators and "
-                f"{len(self.encoders)} link encoders: each joint needs one of each"
-            )
+        if not self.chains or not self.can_channels:
+            raise ValueError("the bus needs at least one Dynamixel chain and one CAN channel")
         if not self.link_timeout_s > 0:
             raise ValueError("link_timeout_s must be > 0")
+        layout = BusLayout.from_names(self.joint_names, self.chains, self.can_channels)
+        object.__setattr__(self, "layout", layout)
 
 
 class DynamixelCanBus(JointBus):
-    """Dynamixel chain + CAN link encoders as one JointBus (SI units)."""
+    """Dynamixel chains + CAN link encoders as one JointBus (SI units)."""
 
     def __init__(self, config: DynamixelCanBusConfig, clock: Callable[[], float] = time.monotonic):
         self.config = config
         self.joint_names = config.joint_names
         self.clock = clock
-        self.chain = DynamixelChain(config.dynamixel)
-        self._can_bus: can.BusABC | None = None
-        self.encoders: LinkEncoderReader | None = None
+        self.chains = tuple(DynamixelChain(chain) for chain in config.chains)
+        self.readers: list[LinkEncoderReader] = []
+        self._chain_joints = [config.layout.joints_of_chain(c) for c in range(len(self.chains))]
+        self._channel_joints = [
+            config.layout.joints_of_channel(c) for c in range(len(config.can_channels))
+        ]
         self._closed = False
 
+    # --- lifecycle -------------------------------------------------------------------------
     def open(self) -> None:
         try:
-            self.chain.open(allow_torque_off=self.config.allow_torque_off)
-            kwargs = dict(self.config.can_bus_kwargs)
-            description = f"{kwargs.get('interface')}:{kwargs.get('channel')}"
-            try:
-                self._can_bus = can.Bus(**kwargs)
-            except (can.CanError, OSError, ValueError) as exc:
-                raise BusError(f"cannot open the CAN bus {description}: {exc}") from exc
-            self.encoders = LinkEncoderReader(
-                self._can_bus,
-                self.config.encoders,
-                force_sensor=self.config.force_sensor,
-                clock=self.clock,
-                bus_description=description,
-            )
-            self.encoders.open()
+            for chain in self.chains:
+                chain.open(allow_torque_off=self.config.allow_torque_off)
+            for channel in self.config.can_channels:
+                try:
+                    can_bus = can.Bus(**channel.bus_kwargs)
+                except (can.CanError, OSError, ValueError) as exc:
+                    raise BusError(f"cannot open the CAN bus {channel.description}: {exc}") from exc
+                reader = LinkEncoderReader(
+                    can_bus,
+                    channel.encoders,
+                    force_sensor=channel.force_sensor,
+                    clock=self.clock,
+                    bus_description=channel.description,
+                )
+                self.readers.append(reader)  # owns can_bus from here on
+                reader.open()
         except BaseException:
             self.close()
             raise
-
-    def read(self) -> JointSample:
-        if self.encoders is None:
-            raise BusError("read() before open()")
-        n = self.n_joints
-        try:
-            self.encoders.send_sync()
-            link = self.encoders.collect(self.config.link_timeout_s)
-            motor = self.chain.read_state()
-        except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
-            raise BusError(f"the testbed bus failed while reading: {exc}") from exc
-        sample = JointSample(
-            timestamp_s=link.sync_time_s,
-            motor_angle_rad=motor.position_rad,
-            link_angle_rad=link.angles_rad,
-            motor_velocity_rad_s=motor.velocity_rad_s,
-            motor_current_a=motor.current_a,
-            hardware_error=motor.hardware_error,
-            torque_enabled=motor.torque_enabled,
-            motor_valid=motor.valid,
-            link_valid=link.valid,
-            link_age_s=link.age_s,
-            bus_errors=list(motor.errors),
-        )
-        missing = [
-            f"link encoder node {self.config.encoders[i].node_id}: no answer to SYNC"
-            for i in range(n)
-            if not link.valid[i]
-        ]
-        sample.bus_errors.extend(missing)
-        sample.notes.extend(link.events)
-        if link.force is not None:
-            sample.extra["contact_force_n"] = link.force.force_n
-        return sample
-
-    def write(self, goal_motor_angle_rad: np.ndarray) -> None:
-        try:
-            self.chain.write_goals(goal_motor_angle_rad)
-        except OSError as exc:
-            raise BusError(f"the testbed bus failed while writing goals: {exc}") from exc
-
-    def enable(self) -> None:
-        self.chain.enable()
-
-    def disable(self) -> None:
-        self.chain.disable()
-
-    def current_limits_a(self) -> np.ndarray:
-        devices = self.chain.devices
-        if not devices:
-            return super().current_limits_a()
-        return np.array([device.current_limit_a for device in devices])
-
-    def reboot(self, joints: Sequence[int] | None = None) -> dict[int, int]:
-        ids = self.chain.dxl_ids
-        selected = [ids[i] for i in joints] if joints is not None else list(ids)
-        statuses = self.chain.reboot(selected)
-        return {dxl_id: status.bits for dxl_id, status in statuses.items()}
 
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
         errors = []
-        if self.encoders is not None:  # the reader owns the CAN bus and shuts it down
+        for closable in (*self.readers, *self.chains):
             try:
-                self.encoders.close()
+                closable.close()
             except Exception as exc:  # noqa: BLE001 - release everything, report after
                 errors.append(str(exc))
-        elif self._can_bus is not None:
-            try:
-                self._can_bus.shutdown()
-            except Exception as exc:  # noqa: BLE001
-                errors.append(str(exc))
-        try:
-            self.chain.close()
-        except Exception as exc:  # noqa: BLE001
-            errors.append(str(exc))
         if errors:
-            raise BusError("while closing the testbed bus: " + "; ".join(errors))
+            raise BusError("while closing the bus: " + "; ".join(errors))
+
+    # --- the 200 Hz path -------------------------------------------------------------------
+    def read(self) -> JointSample:
+        if len(self.readers) != len(self.config.can_channels):
+            raise BusError("read() before open()")
+        sample = JointSample.empty(self.n_joints)
+        try:
+            for reader in self.readers:
+                reader.send_sync()
+            links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
+            motors = [chain.read_state() for chain in self.chains]
+        except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
+            raise BusError(f"the bus failed while reading: {exc}") from exc
+        sample.timestamp_s = links[0].sync_time_s
+        for joints, chain, motor in zip(self._chain_joints, self.chains, motors, strict=True):
+            sample.motor_angle_rad[joints] = motor.position_rad
+            sample.motor_velocity_rad_s[joints] = motor.velocity_rad_s
+            sample.motor_current_a[joints] = motor.current_a
+            sample.fault_code[joints] = motor.hardware_error
+            sample.torque_enabled[joints] = motor.torque_enabled
+            sample.motor_valid[joints] = motor.valid
+            for slot in np.flatnonzero(motor.hardware_error):
+                sample.actuator_fault[joints[slot]] = actuator_fault(
+                    int(motor.hardware_error[slot])
+                )
+            for slot in np.flatnonzero(~motor.valid):
+                dxl_id = motor.dxl_ids[slot]
+                reason = motor.invalid_reasons.get(dxl_id) or "; ".join(motor.errors) or "invalid"
+                joint = int(joints[slot])
+                sample.bus_errors.append(
+                    BusFault(joint, DeviceRole.ACTUATOR, self._actuator_label(chain, slot), reason)
+                )
+        for joints, reader, link in zip(self._channel_joints, self.readers, links, strict=True):
+            sample.link_angle_rad[joints] = link.angles_rad
+            sample.link_valid[joints] = link.valid
+            sample.link_age_s[joints] = link.age_s
+            for slot in np.flatnonzero(~link.valid):
+                node = reader.encoder_configs[slot].node_id
+                sample.bus_errors.append(
+                    BusFault(
+                        int(joints[slot]),
+                        DeviceRole.LINK_SENSOR,
+                        f"link encoder node {node}",
+                        "no answer to SYNC",
+                    )
+                )
+            sample.notes.extend(link.events)
+            if link.force is not None:
+                sample.extra["contact_force_n"] = link.force.force_n
+        return sample
+
+    def write(self, goal_motor_angle_rad: np.ndarray) -> None:
+        goal = np.asarray(goal_motor_angle_rad, dtype=float)
+        try:
+            for joints, chain in zip(self._chain_joints, self.chains, strict=True):
+                chain.write_goals(goal[joints])
+        except OSError as exc:
+            raise BusError(f"the bus failed while writing goals: {exc}") from exc
+
+    # --- torque ----------------------------------------------------------------------------
+    def enable(self) -> None:
+        for chain in self.chains:
+            chain.enable()
+
+    def disable(self) -> None:
+        errors = []
+        for chain in self.chains:  # every chain gets its try, whatever the others did
+            try:
+                chain.disable()
+            except Exception as exc:  # noqa: BLE001 - collected and raised below
+                errors.append(f"{chain.config.port}: {exc}")
+        if errors:
+            raise BusError("torque off failed on " + "; ".join(errors))
+
+    def reboot(self, joints: Sequence[int] | None = None) -> dict[str, ActuatorFault]:
+        selected = range(self.n_joints) if joints is None else joints
+        result: dict[str, ActuatorFault] = {}
+        for c, chain in enumerate(self.chains):
+            mine = [j for j in selected if self.config.layout.actuator_slot[j][0] == c]
+            if not mine:
+                continue
+            ids = [chain.dxl_ids[self.config.layout.actuator_slot[j][1]] for j in mine]
+            statuses = chain.reboot(ids)
+            for j, dxl_id in zip(mine, ids, strict=True):
+                result[self.joint_names[j]] = actuator_fault(statuses[dxl_id].bits)
+        return result
+
+    # --- what it is ------------------------------------------------------------------------
+    def current_limits_a(self) -> np.ndarray:
+        limits = np.full(self.n_joints, np.nan)
+        for joints, chain in zip(self._chain_joints, self.chains, strict=True):
+            if chain.devices:
+                limits[joints] = [device.current_limit_a for device in chain.devices]
+        return limits
+
+    def devices(self) -> tuple[JointDevices, ...]:
+        layout = self.config.layout
+        out = []
+        for j in range(self.n_joints):
+            chain, slot = layout.actuator_slot[j]
+            channel, enc_slot = layout.encoder_slot[j]
+            node = self.config.can_channels[channel].encoders[enc_slot].node_id
+            out.append(
+                JointDevices(
+                    actuator=self._actuator_label(self.chains[chain], slot),
+                    link_sensor=f"link encoder node {node}",
+                )
+            )
+        return tuple(out)
+
+    def describe(self) -> dict[str, object]:
+        return {
+            "joints": list(self.joint_names),
+            "dynamixel": [
+                {
+                    "port": chain.config.port,
+                    "baudrate": chain.config.baudrate,
+                    "ids": list(chain.dxl_ids),
+                }
+                for chain in self.chains
+            ],
+            "can": [
+                {
+                    **{
+                        k: v for k, v in channel.bus_kwargs.items() if k in ("interface", "channel")
+                    },
+                    "encoder_node_ids": [e.node_id for e in channel.encoders],
+                    "force_sensor_node_id": (
+                        channel.force_sensor.node_id if channel.force_sensor else None
+                    ),
+                }
+                for channel in self.config.can_channels
+            ],
+        }
+
+    @staticmethod
+    def _actuator_label(chain: DynamixelChain, slot: int) -> str:
+        return f"actuator {chain.dxl_ids[slot]}"

@@ -1,7 +1,9 @@
 """The abstract joint bus: what the loop sees of a set of flexible joints, in SI units.
 
 Modelled on python-can's `BusABC`: one small abstract class, implementations chosen by
-configuration, the same loop code for the real testbed and the emulated one.
+configuration, the same loop code for the real testbed, the emulated one and the in-process one.
+Nothing here is specific to a vendor: an actuator's own fault codes are translated into
+`ActuatorFault` by its driver, and a device that did not answer is reported as a `BusFault`.
 """
 
 from __future__ import annotations
@@ -13,24 +15,46 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
-class HardwareError(enum.IntFlag):
-    """Bits of the Dynamixel Pro Hardware Error Status (address 892) and Shutdown (48) items.
+class ActuatorFault(enum.IntFlag):
+    """Why an actuator's own protection stopped it (or is about to): vendor-neutral.
 
-    Source: ROBOTIS e-Manual, H54-200-S500-R, "Shutdown" (bits 7 and 6 are unused).
+    A driver maps its device's codes onto these (the Dynamixel bits: drivers/dynamixel/
+    hardware_error.py) and keeps the device's own code beside them for the message.
     """
 
-    INPUT_VOLTAGE = 0x01
-    MOTOR_HALL_SENSOR = 0x02
-    OVERHEATING = 0x04
-    MOTOR_ENCODER = 0x08
-    ELECTRICAL_SHOCK = 0x10
-    OVERLOAD = 0x20
+    OVERLOAD = 0x01
+    OVERHEATING = 0x02
+    SUPPLY_VOLTAGE = 0x04
+    MOTOR_SENSOR = 0x08
+    ELECTRICAL = 0x10
+    OTHER = 0x80
 
     @classmethod
-    def describe(cls, bits: int) -> str:
-        """'OVERLOAD|OVERHEATING' for the set bits, 'none' for 0."""
-        names = [flag.name for flag in cls if bits & flag and flag.name]
+    def describe(cls, flags: int) -> str:
+        """'OVERLOAD|OVERHEATING' for the set flags, 'none' for 0."""
+        names = [flag.name for flag in cls if flags & flag and flag.name]
         return "|".join(names) if names else "none"
+
+
+class DeviceRole(enum.Enum):
+    """Which device of a joint a bus fault concerns."""
+
+    ACTUATOR = "actuator"
+    LINK_SENSOR = "link sensor"
+    OTHER = "other"
+
+
+@dataclass(frozen=True)
+class BusFault:
+    """One thing that went wrong on a bus this tick, tied to a joint where it concerns one."""
+
+    joint: int | None  # joint index, None for a bus-wide problem or a sensor of no joint
+    role: DeviceRole
+    device: str  # e.g. "Dynamixel ID 1 (link)", "link encoder node 5"
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.device}: {self.message}"
 
 
 class BusError(RuntimeError):
@@ -50,14 +74,15 @@ class JointSample:
     link_angle_rad: np.ndarray
     motor_velocity_rad_s: np.ndarray
     motor_current_a: np.ndarray
-    hardware_error: np.ndarray  # uint8 per joint, HardwareError bits (0 = healthy)
+    actuator_fault: np.ndarray  # uint8 per joint, ActuatorFault flags (0 = healthy)
+    fault_code: np.ndarray  # int per joint: the device's own code for it (for messages)
     torque_enabled: np.ndarray  # bool per joint, as read back from the device
     motor_valid: np.ndarray  # bool per joint: the actuator answered this tick
-    link_valid: np.ndarray  # bool per joint: a fresh link-encoder value arrived this tick
+    link_valid: np.ndarray  # bool per joint: a fresh link-sensor value arrived this tick
     link_age_s: np.ndarray  # seconds since the last fresh link value (0 when fresh)
-    bus_errors: list[str] = field(default_factory=list)  # what went wrong this tick, if anything
+    bus_errors: list[BusFault] = field(default_factory=list)  # what went wrong this tick
     notes: list[str] = field(default_factory=list)  # bus events worth logging (boot-up, EMCY)
-    extra: dict[str, float] = field(default_factory=dict)  # e.g. contact force from a sensor
+    extra: dict[str, float] = field(default_factory=dict)  # named sensors, e.g. contact force
 
     @classmethod
     def empty(cls, n_joints: int, timestamp_s: float = 0.0) -> JointSample:
@@ -68,7 +93,8 @@ class JointSample:
             link_angle_rad=nan.copy(),
             motor_velocity_rad_s=nan.copy(),
             motor_current_a=nan.copy(),
-            hardware_error=np.zeros(n_joints, dtype=np.uint8),
+            actuator_fault=np.zeros(n_joints, dtype=np.uint8),
+            fault_code=np.zeros(n_joints, dtype=np.int64),
             torque_enabled=np.zeros(n_joints, dtype=bool),
             motor_valid=np.zeros(n_joints, dtype=bool),
             link_valid=np.zeros(n_joints, dtype=bool),
@@ -79,6 +105,18 @@ class JointSample:
     def deflection_rad(self) -> np.ndarray:
         """Link minus motor angle: positive when the load leads the motor."""
         return self.link_angle_rad - self.motor_angle_rad
+
+    def errors_of(self, joint: int, role: DeviceRole) -> list[BusFault]:
+        """This tick's bus faults of one joint's device."""
+        return [f for f in self.bus_errors if f.joint == joint and f.role is role]
+
+
+@dataclass(frozen=True)
+class JointDevices:
+    """How one joint's devices are named in messages (e.g. "Dynamixel ID 1 on /dev/ttyUSB0")."""
+
+    actuator: str
+    link_sensor: str
 
 
 class JointBus(abc.ABC):
@@ -117,20 +155,28 @@ class JointBus(abc.ABC):
         """Torque off for every joint (best effort on every joint even if one fails)."""
 
     @abc.abstractmethod
-    def reboot(self, joints: list[int] | None = None) -> dict[int, int]:
-        """Reboot the actuators (all, or these joint indices); clears latched hardware errors.
+    def reboot(self, joints: list[int] | None = None) -> dict[str, ActuatorFault]:
+        """Reboot the actuators (all, or these joint indices); clears latched faults.
 
-        Returns the Hardware Error Status bits each device reports after the reboot.
+        Returns, per rebooted joint name, the faults its actuator reports afterwards.
         """
 
     @abc.abstractmethod
     def close(self) -> None:
         """Release ports and threads. Safe to call twice."""
 
+    @abc.abstractmethod
+    def devices(self) -> tuple[JointDevices, ...]:
+        """Each joint's devices, named for messages (one entry per joint)."""
+
     def current_limits_a(self) -> np.ndarray:
         """Each actuator's current cap [A] as the device reports it (after open()); NaN where
         the bus cannot tell. The supervisor's overload guard compares the current against it."""
         return np.full(self.n_joints, np.nan)
+
+    def describe(self) -> dict[str, object]:
+        """What this bus drives (ports, IDs, node IDs), for the run's record."""
+        return {"joints": list(self.joint_names)}
 
     def __enter__(self) -> JointBus:
         self.open()

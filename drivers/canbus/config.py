@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from drivers.canbus.units import RLC2IC_MR075_COUNTS_PER_REV
+
 
 @dataclass(frozen=True)
 class LinkEncoderConfig:
@@ -17,15 +19,17 @@ class LinkEncoderConfig:
     stale_after_s: age beyond which the last value must not be used (`LinkReading.stale`).
     heartbeat_ms: producer heartbeat time written to 0x1017 (0 = no heartbeat).
     tpdo: which TPDO (1..4) carries the position; CiA 406 devices use TPDO1 or TPDO2.
+    name: the joint it measures (for messages and for a bus's joint layout).
     """
 
     node_id: int
-    counts_per_rev: int = 983_040
+    counts_per_rev: int = RLC2IC_MR075_COUNTS_PER_REV
     offset_rad: float = 0.0
     direction: int = +1
     stale_after_s: float = 0.02
     heartbeat_ms: int = 100
     tpdo: int = 1
+    name: str = ""
 
     def __post_init__(self) -> None:
         _check_common(

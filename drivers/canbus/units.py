@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+# RLS RLC2IC read head on an MR075 magnetic ring: 120 poles x 8192 counts per pole (RLS data
+# sheets RLCD02 / MRD01). The testbed's and DYROS-JET's link encoders.
+RLC2IC_MR075_COUNTS_PER_REV = 120 * 8192  # 983,040
+
 
 def link_angle_rad_from_counts(
     raw_counts: np.ndarray | int,

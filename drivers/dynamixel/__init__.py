@@ -14,8 +14,15 @@ from drivers.dynamixel.chain import (
     HardwareErrorStatus,
 )
 from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
-from drivers.dynamixel.control_table import MODELS, ControlItem, ModelSpec, model_spec
+from drivers.dynamixel.control_table import (
+    MODELS,
+    ControlItem,
+    ModelSpec,
+    model_number,
+    model_spec,
+)
 from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, EepromChangeRefused
+from drivers.dynamixel.hardware_error import HardwareError, actuator_fault
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.scan import FoundDevice, scan
 from drivers.dynamixel.units import H54_200_S500_R_UNITS, DeviceUnits
@@ -36,10 +43,13 @@ __all__ = [
     "DynamixelState",
     "EepromChangeRefused",
     "FoundDevice",
+    "HardwareError",
     "HardwareErrorStatus",
     "LowLatencyPortHandler",
     "ModelSpec",
+    "actuator_fault",
     "bench_bus",
+    "model_number",
     "model_spec",
     "open_port",
     "scan",

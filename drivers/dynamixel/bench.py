@@ -20,27 +20,23 @@ from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite
 from drivers.dynamixel.chain import DynamixelChain
 from drivers.dynamixel.units import rad_to_position
 from drivers.joint_bus import BusError
+from drivers.timing import DurationStats
 
 
 @dataclass(frozen=True)
-class CycleStats:
-    """Wall time of one read+write cycle [s] over `cycles` cycles; failures: invalid reads."""
+class CycleStats(DurationStats):
+    """Wall time of one read+write cycle [s]; failures: invalid reads."""
 
-    cycles: int
-    median_s: float
-    p90_s: float
-    max_s: float
-    failures: int
+    failures: int = 0
+
+    @property
+    def cycles(self) -> int:
+        return self.count
 
     @classmethod
     def from_samples(cls, durations_s: np.ndarray, failures: int) -> CycleStats:
-        return cls(
-            cycles=len(durations_s),
-            median_s=float(np.median(durations_s)),
-            p90_s=float(np.percentile(durations_s, 90)),
-            max_s=float(durations_s.max()),
-            failures=failures,
-        )
+        stats = DurationStats.of(durations_s)
+        return cls(**vars(stats), failures=failures)
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from drivers.dynamixel import configure
 from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
 from drivers.dynamixel.device_io import ERRBIT_ALERT, ERROR_NUMBER_MASK, DeviceIO
 from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, EepromChangeRefused
+from drivers.dynamixel.hardware_error import HardwareError
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.state import DeviceInfo, DynamixelState, HardwareErrorStatus
 from drivers.dynamixel.state_block import STATE_BLOCK_ITEMS, StateBlockLayout
@@ -53,7 +54,7 @@ from drivers.dynamixel.units import (
     rad_to_position,
     velocity_to_rad_s,
 )
-from drivers.joint_bus import BusError, HardwareError
+from drivers.joint_bus import BusError
 
 __all__ = [
     "DeviceInfo",
@@ -201,10 +202,13 @@ class DynamixelChain:
         valid = np.zeros(len(self._ids), dtype=bool)
         alert = np.zeros(len(self._ids), dtype=bool)
         errors: list[str] = []
+        reasons: dict[int, str] = {}  # why a device's entry is invalid, by ID
         result = sync_read.txPacket()
         if result != COMM_SUCCESS:
-            errors.append(f"sync read not sent: {self._packet.getTxRxResult(result)}")
-            return self._state_from_raw(raw, valid, alert, errors)
+            reason = f"sync read not sent: {self._packet.getTxRxResult(result)}"
+            errors.append(reason)
+            reasons.update(dict.fromkeys(self._ids, reason))
+            return self._state_from_raw(raw, valid, alert, errors, reasons)
         size = self.layout.size
         expected_length = size + 4  # LEN field: INST + ERR + data + CRC(2)
         pending = dict(self._index_of)
@@ -230,10 +234,12 @@ class DynamixelChain:
             del pending[dxl_id]
             if error & ERROR_NUMBER_MASK:
                 number = error & ERROR_NUMBER_MASK
-                errors.append(
-                    f"{io.label(dxl_id)}: sync-read reply carries error {number} "
+                reason = (
+                    f"sync-read reply carries error {number} "
                     f"({self._packet.getRxPacketError(number)})"
                 )
+                errors.append(f"{io.label(dxl_id)}: {reason}")
+                reasons[dxl_id] = reason
             else:
                 raw[index] = self._decoder.unpack_from(bytes(packet), PKT_DATA)
                 valid[index] = True
@@ -241,11 +247,11 @@ class DynamixelChain:
             if not pending:
                 break
         if pending:
-            reason = f"{corrupt} corrupt reply(s) received" if corrupt else "timeout"
-            errors.extend(
-                f"{io.label(dxl_id)}: no valid sync-read reply ({reason})" for dxl_id in pending
-            )
-        return self._state_from_raw(raw, valid, alert, errors)
+            why = f"{corrupt} corrupt reply(s) received" if corrupt else "timeout"
+            for dxl_id in pending:
+                reasons[dxl_id] = f"no valid sync-read reply ({why})"
+                errors.append(f"{io.label(dxl_id)}: {reasons[dxl_id]}")
+        return self._state_from_raw(raw, valid, alert, errors, reasons)
 
     def write_goals(self, goal_rad: np.ndarray) -> None:
         """One SYNC_WRITE of Goal Position for every joint (chain order, joint frame, rad).
@@ -431,7 +437,12 @@ class DynamixelChain:
         )
 
     def _state_from_raw(
-        self, raw: np.ndarray, valid: np.ndarray, alert: np.ndarray, errors: list[str]
+        self,
+        raw: np.ndarray,
+        valid: np.ndarray,
+        alert: np.ndarray,
+        errors: list[str],
+        reasons: dict[int, str],
     ) -> DynamixelState:
         nan = np.nan
         current_a = np.where(
@@ -454,6 +465,7 @@ class DynamixelChain:
             alert=alert,
             valid=valid,
             errors=errors,
+            invalid_reasons=reasons,
         )
 
     def _open_devices(self, io: DeviceIO, allow_torque_off: bool) -> None:

@@ -168,6 +168,15 @@ def model_spec(model_number: int) -> ModelSpec:
 
 # Names of models a scan may meet but this driver does not drive (display only).
 # Source: ROBOTIS e-Manual page h54-200-s500-ra (model number 54025).
+def model_number(model_name: str) -> int:
+    """The model number of a supported model's name ('H54-200-S500-R' -> 54024)."""
+    for number, spec in MODELS.items():
+        if spec.model_name == model_name:
+            return number
+    known = ", ".join(repr(spec.model_name) for spec in MODELS.values())
+    raise ValueError(f"Dynamixel model {model_name!r} is not supported; supported: {known}")
+
+
 OTHER_MODEL_NAMES: Mapping[int, str] = MappingProxyType({54025: "H54-200-S500-R(A)"})
 
 

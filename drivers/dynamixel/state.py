@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drivers.joint_bus import HardwareError
+from drivers.dynamixel.hardware_error import HardwareError
 
 
 @dataclass
@@ -19,7 +19,7 @@ class DynamixelState:
 
     position_rad, velocity_rad_s, current_a: joint frame (direction and offset applied).
     torque_estimate_nm: current x the spec torque constant, an ESTIMATE (see units.py).
-    hardware_error: Hardware Error Status (892) bits, `drivers.joint_bus.HardwareError`.
+    hardware_error: Hardware Error Status (892) bits, `drivers.dynamixel.HardwareError`.
     torque_enabled: Torque Enable (562) as read; a shutdown clears it.
     alert: the Alert bit (0x80) of the device's status packet for this read.
     """
@@ -36,6 +36,7 @@ class DynamixelState:
     alert: np.ndarray  # bool
     valid: np.ndarray  # bool
     errors: list[str] = field(default_factory=list)
+    invalid_reasons: dict[int, str] = field(default_factory=dict)  # by ID: why not valid
 
     @property
     def all_valid(self) -> bool:

@@ -1,31 +1,19 @@
-"""The `hil` command.
-
-    hil run [EXPERIMENT] [--controller NAME] [--kdist K] [--config FILE] [--emulate]
-            [--realtime] [--out DIR] [--json] [--inject FAULT@T[+D]] [--seed N] ...
-    hil emulate [--config FILE] [--realtime] [--experiment NAME] [--inject FAULT@T[+D]]
-    hil scan --port PATH [--baudrate N]
-    hil reboot [--config FILE] [--port ...]
-    hil bench bus|loop [--json]
-    hil config                 print the sample configuration file
-
-Exit codes: 0 success, 1 the run ended in a safety stop or failed, 2 bad arguments or bad
-configuration (nothing was sent to any device).
-"""
+"""The `hil` command line: one parser, one sub-parser per command."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from hil.config import ConfigError, default_config_text
+from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
+from hil.experiments import EXPERIMENTS
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+BENCH_TARGETS = ("bus", "loop")
 
 
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("connection overrides (point a config at other ports)")
-    group.add_argument("--port", help="Dynamixel serial port (overrides [dynamixel] port)")
+    group.add_argument("--port", help="Dynamixel serial port (overrides [[dynamixel]] port)")
     group.add_argument("--baudrate", type=int, help="Dynamixel baud (overrides the config)")
     group.add_argument("--can-interface", help="python-can interface, e.g. socketcan, slcan")
     group.add_argument("--can-channel", help="python-can channel, e.g. can0 or /dev/pts/4")
@@ -36,14 +24,7 @@ def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="hil",
-        description="Kim et al. (ICRA 2018) GC + DOB + LQR on flexible-joint Dynamixel Pro "
-        "actuators: the real testbed, or its byte-exact emulation.",
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_run(sub: argparse._SubParsersAction) -> None:
     run = sub.add_parser(
         "run",
         help="run an experiment (or, without one, the paper's whole testbed comparison)",
@@ -53,19 +34,19 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "experiment",
         nargs="?",
-        choices=["contact", "impact"],
-        help="contact or impact; omit for the full comparison",
+        choices=sorted(EXPERIMENTS),
+        help="the experiment to run; omit for the full comparison",
     )
     run.add_argument(
         "--controller",
         default=None,
-        choices=["pid", "gc", "gc+lqr", "gc+lqr+dob"],
+        choices=list(CONTROLLER_NAMES),
         help="default: the config's [controller] name",
     )
     run.add_argument("--kdist", type=float, help="DOB gain Kdist (default: the config's)")
     run.add_argument(
         "--composition",
-        choices=["accumulated", "literal"],
+        choices=list(COMPOSITION_READINGS),
         help="reading of the paper's (25) (default: the config's; see controller/composition.py)",
     )
     run.add_argument("--config", type=Path, help="configuration file (default: built-in testbed)")
@@ -97,12 +78,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_connection_overrides(run)
 
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hil",
+        description="Kim et al. (ICRA 2018) GC + DOB + LQR on flexible-joint Dynamixel Pro "
+        "actuators: the real testbed, or its byte-exact emulation.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_run(sub)
+
     emulate = sub.add_parser("emulate", help="serve the virtual testbed until interrupted")
     emulate.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
     emulate.add_argument("--realtime", action="store_true", help="wall-clock physics and wire time")
     emulate.add_argument(
         "--experiment",
-        choices=["contact", "impact"],
+        choices=sorted(EXPERIMENTS),
         help="build this experiment's world (block, pushes)",
     )
     emulate.add_argument("--inject", action="append", default=[], metavar="FAULT@T[+D]")
@@ -122,47 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_connection_overrides(reboot)
 
     bench = sub.add_parser("bench", help="measure the bus or the loop and print figures")
-    bench.add_argument("what", choices=["bus", "loop"])
+    bench.add_argument("what", choices=BENCH_TARGETS)
     bench.add_argument("--json", action="store_true")
     bench.add_argument("--cycles", type=int, default=None, help="cycles per measurement")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
 
     sub.add_parser("config", help="print the sample configuration file")
     return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        if args.command == "config":
-            sys.stdout.write(default_config_text())
-            return EXIT_OK
-        if args.command == "emulate":
-            from hil.commands import cmd_emulate
-
-            return cmd_emulate(args)
-        if args.command == "run":
-            from hil.commands import cmd_run
-
-            return cmd_run(args)
-        if args.command == "scan":
-            from hil.commands import cmd_scan
-
-            return cmd_scan(args)
-        if args.command == "reboot":
-            from hil.commands import cmd_reboot
-
-            return cmd_reboot(args)
-        if args.command == "bench":
-            from hil.bench import cmd_bench
-
-            return cmd_bench(args)
-    except ConfigError as exc:
-        print(f"hil: configuration error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("hil: interrupted", file=sys.stderr)
-        return EXIT_FAILED
-    parser.error(f"unknown command {args.command}")
-    return EXIT_USAGE

@@ -1,4 +1,4 @@
-"""From the configuration file to the emulated testbed, and the embedded emulator process.
+"""From the configuration file to the emulated robot, and the embedded emulator process.
 
 `emulator_spec()` turns the hardware description (IDs, node IDs, resolutions, mountings, baud)
 plus the [emulator] section and an experiment's world into what `sim_backend` builds.
@@ -20,8 +20,12 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hil.config import Config, ConfigError
 from hil.experiments import Experiment
+from hil.vocabulary import EmulatorClock
+from hil.wiring.hardware import encoder_counts_per_rev
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import FaultEvent, PushEvent, Scenario
 from sim_backend.server import EmulatedJointSpec, EmulatorSpec
@@ -36,15 +40,29 @@ def experiment_scenario(
     """The world an experiment needs (the block, the pushes) plus injected faults."""
     if experiment is None:
         return Scenario(faults=faults)
+    world = experiment.world
     return Scenario(
         pushes=tuple(
-            PushEvent(p.start_s, p.duration_s, p.force_n, joint=0) for p in experiment.pushes
+            PushEvent(p.start_s, p.duration_s, p.force_n, joint=p.joint) for p in world.pushes
         ),
         faults=faults,
         obstacle_contact_angle_rad=(
-            experiment.obstacle.contact_angle_rad if experiment.obstacle else None
+            world.obstacle.contact_angle_rad if world.obstacle is not None else None
         ),
     )
+
+
+def plant_and_servo(
+    config: Config, initial_angle_rad: float | None = None
+) -> tuple[TestbedPlantParams, H54ServoParams]:
+    """The emulated plant's and servo's parameters: [emulator] plant/servo over the defaults."""
+    overrides = dict(config.emulator.plant)
+    if initial_angle_rad is not None:
+        overrides.setdefault("initial_link_angle_rad", initial_angle_rad)
+    try:
+        return TestbedPlantParams(**overrides), H54ServoParams(**config.emulator.servo)
+    except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
+        raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
 
 
 def emulator_spec(
@@ -52,23 +70,23 @@ def emulator_spec(
     *,
     experiment: Experiment | None = None,
     faults: tuple[FaultEvent, ...] = (),
-    clock: str | None = None,
+    clock: EmulatorClock | None = None,
     seed: int | None = None,
 ) -> EmulatorSpec:
-    emu = config.emulator
-    plant_overrides = dict(emu.plant)
+    if len(config.dynamixel) != 1 or len(config.can) != 1:
+        raise ConfigError(
+            f"{config.source}: the emulator serves one Dynamixel chain and one CAN channel "
+            f"(this configuration has {len(config.dynamixel)} and {len(config.can)})"
+        )
+    initial = None
     if experiment is not None:
-        plant_overrides.setdefault("initial_link_angle_rad", experiment.initial_angle_rad)
-    try:
-        plant = TestbedPlantParams(**plant_overrides)
-        servo = H54ServoParams(**emu.servo)
-    except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
-        raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
+        initial = float(np.atleast_1d(experiment.reference(0.0))[0])
+    plant, servo = plant_and_servo(config, initial)
     joints = tuple(
         EmulatedJointSpec(
             dxl_id=j.dynamixel_id,
             encoder_node_id=j.encoder_node_id,
-            encoder_counts_per_rev=j.encoder_counts_per_rev,
+            encoder_counts_per_rev=encoder_counts_per_rev(j),
             encoder_direction=j.encoder_direction,
             encoder_offset_rad=j.encoder_offset_rad,
             motor_direction=j.motor_direction,
@@ -79,19 +97,22 @@ def emulator_spec(
     for fault in faults:
         if not 0 <= fault.joint < len(joints):
             raise ConfigError(f"fault {fault.kind}: joint index {fault.joint} out of range")
-    return EmulatorSpec(
-        joints=joints,
-        baudrate=config.dynamixel.baudrate,
-        can_bitrate=config.can.bitrate,
-        force_sensor_node_id=config.force_sensor.node_id,
-        period_s=config.loop.period_s,
-        clock=clock or emu.clock,
-        seed=emu.seed if seed is None else seed,
-        plant=plant,
-        servo=servo,
-        scenario=experiment_scenario(experiment, faults),
-        reboot_time_s=emu.reboot_time_s,
-    )
+    try:
+        return EmulatorSpec(
+            joints=joints,
+            baudrate=config.dynamixel[0].baudrate,
+            can_bitrate=config.can[0].bitrate,
+            force_sensor_node_id=config.force_sensor.node_id,
+            period_s=config.loop.period_s,
+            clock=str(clock or config.emulator.clock),
+            seed=config.emulator.seed if seed is None else seed,
+            plant=plant,
+            servo=servo,
+            scenario=experiment_scenario(experiment, faults),
+            reboot_time_s=config.emulator.reboot_time_s,
+        )
+    except ValueError as exc:
+        raise ConfigError(f"{config.source}: {exc}") from exc
 
 
 def spec_to_json(spec: EmulatorSpec) -> str:

@@ -1,0 +1,364 @@
+"""`hil bench loop`: controller compute per tick, the lock-step real-time factor, and the 200 Hz
+wall-clock loop's timing.
+
+- controller compute per tick (`step` + `notify_applied`) of all four controllers for 1 and
+  12 joints, interleaved tick by tick;
+- the real-time factor of a lock-step run of the impact experiment with gc+lqr+dob through the
+  emulated buses (`hil.loop.run_experiment`, the loop `hil run` uses): simulated s / wall s;
+- the 200 Hz wall-clock loop (`hil.loop.WallClock`) running the same experiment against the
+  emulator in realtime mode: measured period, lateness of each tick's start behind its grid
+  time, slack, overruns and skipped ticks.
+Figures print human-readable or as one JSON object; nothing here asserts a timing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controller import CONTROLLER_NAMES, ControllerKind, JointController
+from drivers.timing import DurationStats as Distribution
+from hil.bench.bus import JOINT_COUNTS
+from hil.bench.common import (
+    StartFailed,
+    config_with_joints,
+    machine,
+    termination_text,
+    with_bench_reply_timeout,
+    with_retries,
+)
+from hil.config import Config
+from hil.experiments import IMPACT, Experiment
+from hil.loop import (
+    LockstepClock,
+    LoopClock,
+    RunRequest,
+    Tick,
+    WallClock,
+    build_controller,
+    run_experiment,
+)
+from hil.output.records import RunResult
+from hil.vocabulary import ControllerChoice, EmulatorClock
+from hil.wiring import Connection, make_bus
+from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
+
+DEFAULT_LOOP_TICKS = 1000  # 5 s at 200 Hz: the whole impact experiment
+CONTROLLER_WARMUP_TICKS = 20
+LOOP_CONTROLLER = ControllerKind.GC_LQR_DOB
+MIN_RUN_TICKS = 3  # a run that made fewer ticks did not get going
+
+
+def _controller_inputs(
+    n_joints: int, ticks: int, period_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Plausible motor / link / reference angles [rad] (ticks x n): a slow swing, a small
+    deflection. The controllers' cost does not depend on the values; they just stay finite."""
+    time_s = np.arange(ticks)[:, None] * period_s
+    phase = np.arange(n_joints)[None, :] * 0.3
+    reference = 0.2 * np.sin(2 * np.pi * 0.5 * time_s + phase)
+    link = reference + 0.01 * np.sin(2 * np.pi * 3.0 * time_s + phase)
+    motor = link + 0.005 * np.cos(2 * np.pi * 3.0 * time_s + phase)
+    return motor, link, reference
+
+
+def bench_controllers(
+    base: Config,
+    ticks: int,
+    *,
+    joint_counts: Sequence[int] = JOINT_COUNTS,
+    names: Sequence[str] = CONTROLLER_NAMES,
+    warmup: int = CONTROLLER_WARMUP_TICKS,
+) -> list[dict[str, Any]]:
+    """Time step + notify_applied of every (n joints, controller), interleaved tick by tick.
+
+    Each tick runs every case once, the order rotated by one each tick, so a burst of machine
+    load falls on all of them alike. build_s is make_controller's time (LQR design included).
+    """
+    period_s = base.loop.period_s
+    kdist = base.controller.kdist
+    cases: list[tuple[int, str]] = [(n, name) for n in joint_counts for name in names]
+    controllers: list[JointController] = []
+    build_s: list[float] = []
+    inputs: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    total = warmup + ticks
+    for n_joints, name in cases:
+        config = config_with_joints(base, n_joints)
+        started = time.perf_counter()
+        controller = build_controller(config, ControllerChoice(name, kdist), period_s)
+        build_s.append(time.perf_counter() - started)
+        if n_joints not in inputs:
+            inputs[n_joints] = _controller_inputs(n_joints, total, period_s)
+        motor, link, reference = inputs[n_joints]
+        controller.reset(motor[0], link[0], reference[0])
+        controllers.append(controller)
+    durations_s = np.empty((len(cases), total))
+    order = list(range(len(cases)))
+    clock = time.perf_counter
+    for k in range(total):
+        shift = k % len(order)
+        for index in order[shift:] + order[:shift]:
+            controller = controllers[index]
+            motor, link, reference = inputs[cases[index][0]]
+            started = clock()
+            goal = controller.step(motor[k], link[k], reference[k])
+            controller.notify_applied(goal)
+            durations_s[index, k] = clock() - started
+    results = []
+    for index, (n_joints, name) in enumerate(cases):
+        stats = Distribution.of(durations_s[index, warmup:])
+        results.append(
+            {
+                "n_joints": n_joints,
+                "controller": name,
+                "ticks": stats.count,
+                "median_s": stats.median_s,
+                "p99_s": stats.p99_s,
+                "max_s": stats.max_s,
+                "build_s": build_s[index],
+            }
+        )
+    return results
+
+
+class RecordingClock(LoopClock):
+    """Wraps the loop's clock and records, per tick, when it started (perf_counter) and what
+    the clock said about it; preallocated, so recording costs no allocation in the loop.
+
+    grid_origin_s: perf_counter just before the first tick was asked for. The wall clock
+    anchors its grid when that call arrives, so `started_s[k] - (grid_origin_s + index * period)`
+    is the tick's lateness, overstated (never understated) by the few microseconds a
+    `next_tick()` call takes to return.
+    """
+
+    def __init__(self, inner: LoopClock, capacity: int) -> None:
+        super().__init__(inner.period_s)
+        self.inner = inner
+        self.grid_origin_s = math.nan
+        self.started_s = np.full(capacity, math.nan)
+        self.grid_index = np.full(capacity, -1, dtype=np.int64)
+        self.measured_period_s = np.full(capacity, math.nan)
+        self.slack_s = np.full(capacity, math.nan)
+        self.skipped = np.zeros(capacity, dtype=np.int64)
+        self.count = 0
+
+    @property
+    def deterministic(self) -> bool:
+        return self.inner.deterministic
+
+    def next_tick(self) -> Tick:
+        if self.count == 0:
+            self.grid_origin_s = time.perf_counter()
+        tick = self.inner.next_tick()
+        started = time.perf_counter()
+        k = self.count
+        if k < self.started_s.size:
+            self.started_s[k] = started
+            self.grid_index[k] = tick.index
+            self.measured_period_s[k] = tick.measured_period_s
+            self.slack_s[k] = tick.slack_s
+            self.skipped[k] = tick.skipped
+        self.count += 1
+        return tick
+
+    def recorded(self) -> slice:
+        return slice(0, min(self.count, self.started_s.size))
+
+
+@dataclass(frozen=True)
+class _RunRecord:
+    clock: RecordingClock
+    result: RunResult
+    timing_csv: Path  # the runner's per-tick timing
+    latency_timer_ms: float  # the Dynamixel reply timeout's latency term the run used
+
+
+def _run_impact(base: Config, ticks: int, realtime: bool, out_dir: Path) -> _RunRecord:
+    """The impact experiment with gc+lqr+dob for `ticks` ticks, the way `hil run` runs it."""
+    experiment: Experiment = IMPACT
+    period_s = base.loop.period_s
+    clock_kind = EmulatorClock.REALTIME if realtime else EmulatorClock.LOCKSTEP
+    spec = emulator_spec(base, experiment=experiment, clock=clock_kind)
+    inner: LoopClock = WallClock(period_s) if realtime else LockstepClock(period_s)
+    capacity = ticks + 2 * base.loop.stop_cycles + 1
+    clock = RecordingClock(inner, capacity)
+    request = RunRequest(
+        experiment=experiment,
+        choice=ControllerChoice(LOOP_CONTROLLER, base.controller.kdist),
+        out_dir=out_dir,
+        duration_s=ticks * period_s,
+    )
+    with EmbeddedEmulator(spec) as emulator:
+        connection = Connection.from_endpoints(emulator.endpoints, base)
+        bus_clock = inner.now if isinstance(inner, LockstepClock) else time.monotonic
+        bus = make_bus(base, connection, clock=bus_clock)
+        meta = {"bench": "hil bench loop", "clock": "wall" if realtime else "lockstep"}
+        result = run_experiment(base, request, bus, clock, meta)
+    if result.ticks < MIN_RUN_TICKS:
+        raise StartFailed(f"the run ended after {result.ticks} tick(s): {result.ending}")
+    latency_ms = bus.config.chains[0].latency_timer_ms
+    return _RunRecord(clock, result, out_dir / "timing.csv", latency_ms)
+
+
+def _tick_timing(timing_csv: Path) -> dict[str, Any]:
+    """The runner's own per-tick timing (timing.csv): bus read, then controller + supervisor +
+    bus write."""
+    table = np.loadtxt(timing_csv, delimiter=",", skiprows=1, ndmin=2)
+    read = Distribution.of(table[1:, 1])  # tick 0 also runs the start gate
+    compute = Distribution.of(table[1:, 2])
+    return {
+        "bus_read": dataclasses.asdict(read),
+        "compute_and_write": dataclasses.asdict(compute),
+    }
+
+
+def bench_lockstep_run(
+    base: Config, ticks: int, out_dir: Path, say: Callable[[str], None] = lambda _text: None
+) -> dict[str, Any]:
+    """Real-time factor of the lock-step loop: simulated time / wall time, from the second tick
+    (after the start gate and torque on) to the last; opening and closing the bus excluded."""
+    record, failures = with_retries(
+        "lock-step run", lambda: _run_impact(base, ticks, realtime=False, out_dir=out_dir), say
+    )
+    clock, result = record.clock, record.result
+    started = clock.started_s[clock.recorded()]
+    simulated_s = (started.size - 2) * clock.period_s
+    wall_s = float(started[-1] - started[1])
+    return {
+        "experiment": IMPACT.name,
+        "controller": str(LOOP_CONTROLLER),
+        "kdist": base.controller.kdist,
+        "ticks": int(result.ticks),
+        "termination": result.ending.text,
+        "failed_starts": failures,
+        "simulated_s": simulated_s,
+        "loop_wall_s": wall_s,
+        "real_time_factor": simulated_s / wall_s,
+        "run_wall_s": float(result.wall_time_s),
+        "tick": _tick_timing(record.timing_csv),
+        "latency_timer_ms": record.latency_timer_ms,
+    }
+
+
+def bench_wall_clock(
+    base: Config, ticks: int, out_dir: Path, say: Callable[[str], None] = lambda _text: None
+) -> dict[str, Any]:
+    """The 200 Hz WallClock loop against the realtime emulator: period and lateness statistics.
+
+    lateness_k = (when tick k started) - (grid time of tick k), the grid anchored where the
+    clock anchors it (see `RecordingClock`). Tick 0 (start gate, torque on) is left out of the
+    statistics.
+    """
+    record, failures = with_retries(
+        "wall-clock run", lambda: _run_impact(base, ticks, realtime=True, out_dir=out_dir), say
+    )
+    clock, result = record.clock, record.result
+    recorded = clock.recorded()
+    started = clock.started_s[recorded]
+    grid = clock.grid_index[recorded]
+    lateness = started - (clock.grid_origin_s + grid * clock.period_s)
+    inner = clock.inner
+    assert isinstance(inner, WallClock)
+    return {
+        "experiment": IMPACT.name,
+        "controller": str(LOOP_CONTROLLER),
+        "rate_hz": base.loop.rate_hz,
+        "ticks": int(result.ticks),
+        "termination": result.ending.text,
+        "failed_starts": failures,
+        "period": dataclasses.asdict(Distribution.of(clock.measured_period_s[recorded][1:])),
+        "lateness": dataclasses.asdict(Distribution.of(lateness[1:])),
+        "slack": dataclasses.asdict(Distribution.of(clock.slack_s[recorded][1:])),
+        "overruns": inner.stats.overruns,
+        "skipped_ticks": inner.stats.skipped,
+        "tick": _tick_timing(record.timing_csv),
+        "latency_timer_ms": record.latency_timer_ms,
+    }
+
+
+def run_bench_loop(
+    config: Config,
+    ticks: int = DEFAULT_LOOP_TICKS,
+    *,
+    joint_counts: Sequence[int] = JOINT_COUNTS,
+    say: Callable[[str], None] = lambda _text: None,
+) -> dict[str, Any]:
+    config = with_bench_reply_timeout(config)
+    say(
+        f"bench loop: {len(CONTROLLER_NAMES)} controllers x {len(joint_counts)} sizes, {ticks} "
+        "ticks interleaved ..."
+    )
+    controllers = bench_controllers(config, ticks, joint_counts=joint_counts)
+    with tempfile.TemporaryDirectory(prefix="hil-bench-") as tmp:
+        say(f"bench loop: lock-step {IMPACT.name} run with {LOOP_CONTROLLER}, {ticks} ticks ...")
+        lockstep = bench_lockstep_run(config, ticks, Path(tmp) / "lockstep", say)
+        say(
+            f"bench loop: wall-clock {config.loop.rate_hz:g} Hz {IMPACT.name} run against the "
+            f"realtime emulator, {ticks} ticks ({ticks * config.loop.period_s:g} s) ..."
+        )
+        wall = bench_wall_clock(config, ticks, Path(tmp) / "wall", say)
+    return {
+        "bench": "loop",
+        "machine": machine(),
+        "config": config.source,
+        "period_s": config.loop.period_s,
+        "controllers": controllers,
+        "lockstep_run": lockstep,
+        "wall_clock_run": wall,
+    }
+
+
+def loop_report_text(report: dict[str, Any]) -> str:
+    period_ms = report["period_s"] * 1e3
+    lines = [
+        "hil bench loop",
+        "",
+        "controller compute per tick (step + notify_applied), all cases interleaved tick by tick:",
+        f"  {'joints':>6}  {'controller':<11}  {'median [us]':>11}  {'p99 [us]':>9}  "
+        f"{'max [us]':>9}  {'build [ms]':>10}",
+    ]
+    for case in report["controllers"]:
+        lines.append(
+            f"  {case['n_joints']:>6}  {case['controller']:<11}  {case['median_s'] * 1e6:>11.1f}"
+            f"  {case['p99_s'] * 1e6:>9.1f}  {case['max_s'] * 1e6:>9.1f}  "
+            f"{case['build_s'] * 1e3:>10.2f}"
+        )
+    lock = report["lockstep_run"]
+    lines += [
+        "",
+        f"lock-step run ({lock['experiment']}, {lock['controller']} Kdist {lock['kdist']:g}, "
+        "through the emulated buses, log written):",
+        f"  {lock['simulated_s']:.2f} s simulated in {lock['loop_wall_s']:.2f} s of loop: "
+        f"real-time factor {lock['real_time_factor']:.2f} "
+        f"(whole run incl. bus open/close {lock['run_wall_s']:.2f} s)",
+        "  per tick median / p99 / max [ms]: bus read "
+        + Distribution(**lock["tick"]["bus_read"]).text()
+        + ", controller + supervisor + write "
+        + Distribution(**lock["tick"]["compute_and_write"]).text(),
+        *termination_text(lock),
+    ]
+    wall = report["wall_clock_run"]
+    lines += [
+        "",
+        f"wall-clock run at {wall['rate_hz']:g} Hz (nominal period {period_ms:g} ms) against the "
+        f"realtime emulator, {wall['ticks']} ticks (reply timeout latency term "
+        f"{wall['latency_timer_ms']:g} ms):",
+        "  median / p99 / max [ms]:",
+        f"    measured period  {Distribution(**wall['period']).text()}",
+        f"    lateness         {Distribution(**wall['lateness']).text()}",
+        f"    slack            min {wall['slack']['min_s'] * 1e3:.3f}, median "
+        f"{wall['slack']['median_s'] * 1e3:.3f} (time left when a cycle finished; < 0: overrun)",
+        f"    bus read         {Distribution(**wall['tick']['bus_read']).text()}",
+        f"    compute + write  {Distribution(**wall['tick']['compute_and_write']).text()}",
+        f"  overruns {wall['overruns']}, skipped ticks {wall['skipped_ticks']}",
+        *termination_text(wall),
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,58 @@
+"""The `hil` command.
+
+    hil run [EXPERIMENT] [--controller NAME] [--kdist K] [--config FILE] [--emulate]
+            [--realtime] [--out DIR] [--json] [--inject FAULT@T[+D]] [--seed N] ...
+    hil emulate [--config FILE] [--realtime] [--experiment NAME] [--inject FAULT@T[+D]]
+    hil scan --port PATH [--baudrate N]
+    hil reboot [--config FILE] [--port ...]
+    hil bench bus|loop [--json]
+    hil config                 print the sample configuration file
+
+Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
+arguments or bad configuration (nothing was sent to any device).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from hil.cli.exit_codes import ExitCode
+from hil.cli.parser import build_parser
+from hil.config import ConfigError, default_config_text
+
+__all__ = ["ExitCode", "build_parser", "main"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(_dispatch(args))
+    except ConfigError as exc:
+        print(f"hil: configuration error: {exc}", file=sys.stderr)
+        return ExitCode.USAGE
+    except KeyboardInterrupt:
+        print("hil: interrupted", file=sys.stderr)
+        return ExitCode.FAILED
+
+
+def _dispatch(args) -> int:  # noqa: ANN001 - an argparse.Namespace
+    if args.command == "config":
+        sys.stdout.write(default_config_text())
+        return ExitCode.OK
+    if args.command == "emulate":
+        from hil.cli.emulate import cmd_emulate
+
+        return cmd_emulate(args)
+    if args.command == "run":
+        from hil.cli.run import cmd_run
+
+        return cmd_run(args)
+    if args.command in ("scan", "reboot"):
+        from hil.cli.devices import cmd_reboot, cmd_scan
+
+        return cmd_scan(args) if args.command == "scan" else cmd_reboot(args)
+    if args.command == "bench":
+        from hil.cli.bench import cmd_bench
+
+        return cmd_bench(args)
+    raise AssertionError(f"unhandled command {args.command}")

@@ -1,0 +1,41 @@
+"""`hil bench bus|loop [--json] [--cycles N] [--config F]`: measure, print the figures."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from drivers.joint_bus import BusError
+from hil.bench.bus import DEFAULT_BUS_CYCLES, bus_report_text, run_bench_bus
+from hil.bench.common import BenchError, without_nan
+from hil.bench.loop import DEFAULT_LOOP_TICKS, loop_report_text, run_bench_loop
+from hil.cli.common import checked_config
+from hil.cli.exit_codes import ExitCode
+from hil.wiring.emulation import EmulatorStartError
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """`hil bench bus|loop [--json] [--cycles N]`."""
+    cycles = args.cycles
+    if cycles is not None and cycles < 1:
+        print(f"hil bench: --cycles must be >= 1, got {cycles}", file=sys.stderr)
+        return ExitCode.USAGE
+    config = checked_config(args.config)
+
+    def say(text: str) -> None:
+        if not args.json:
+            print(text, file=sys.stderr, flush=True)
+
+    try:
+        if args.what == "bus":
+            report = run_bench_bus(config, cycles or DEFAULT_BUS_CYCLES, say=say)
+            text = bus_report_text(report)
+        else:
+            report = run_bench_loop(config, cycles or DEFAULT_LOOP_TICKS, say=say)
+            text = loop_report_text(report)
+    except (EmulatorStartError, BenchError, BusError, OSError) as exc:
+        print(f"hil bench {args.what}: {exc}", file=sys.stderr)
+        return ExitCode.FAILED
+    print(json.dumps(without_nan(report), allow_nan=False) if args.json else text)
+    return ExitCode.OK

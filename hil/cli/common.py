@@ -1,0 +1,82 @@
+"""What several commands share: the checked configuration, --attach, --inject."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from hil.config import Config, ConfigError, load_config
+from hil.session import ConnectionOverrides
+from hil.wiring import check_devices
+from sim_backend.scenario import EMULATOR_FAULTS, FaultEvent, parse_fault
+
+LOOP_FAULTS = ("overrun",)
+
+
+def checked_config(path: Path | None) -> Config:
+    """The configuration file (or the built-in one), its device figures checked by the drivers."""
+    config = load_config(path)
+    check_devices(config)
+    return config
+
+
+def connection_overrides(args: argparse.Namespace) -> ConnectionOverrides:
+    return ConnectionOverrides(
+        port=args.port,
+        baudrate=args.baudrate,
+        can_interface=args.can_interface,
+        can_channel=args.can_channel,
+    )
+
+
+def load_attach(text: str) -> dict[str, Any]:
+    """--attach: the JSON line `hil emulate` printed, or a file whose first line it is."""
+    path = Path(text)
+    if path.exists():
+        text = path.read_text().splitlines()[0]
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"--attach: not the JSON line `hil emulate` prints: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError("--attach: not the JSON object `hil emulate` prints")
+    for key in ("dynamixel_port", "baudrate", "can"):
+        if key not in data:
+            raise ConfigError(f"--attach: the JSON line has no {key!r}")
+    return data
+
+
+def parse_injections(
+    texts: list[str],
+) -> tuple[tuple[FaultEvent, ...], tuple[tuple[float, float], ...]]:
+    """--inject arguments -> (emulator faults, loop overruns as (start_s, duration_s))."""
+    emulator: list[FaultEvent] = []
+    overruns: list[tuple[float, float]] = []
+    for text in texts:
+        kind = text.partition("@")[0].strip()
+        if kind in LOOP_FAULTS:
+            _, _, when = text.partition("@")
+            start, _, duration = when.partition("+")
+            try:
+                window = (float(start or 0.0), float(duration) if duration else 0.02)
+            except ValueError:
+                raise ConfigError(
+                    f"bad --inject {text!r}: expected overrun@START[+DURATION]"
+                ) from None
+            if not all(math.isfinite(v) and v >= 0 for v in window) or window[1] <= 0:
+                raise ConfigError(f"bad --inject {text!r}: times must be finite, start >= 0")
+            overruns.append(window)
+            continue
+        if kind not in EMULATOR_FAULTS:
+            raise ConfigError(
+                f"bad --inject {text!r}: unknown fault {kind!r}; choose one of "
+                f"{list(EMULATOR_FAULTS + LOOP_FAULTS)}"
+            )
+        try:
+            emulator.append(parse_fault(text))
+        except ValueError as exc:
+            raise ConfigError(f"bad --inject: {exc}") from None
+    return tuple(emulator), tuple(overruns)

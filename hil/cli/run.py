@@ -1,0 +1,126 @@
+"""`hil run [EXPERIMENT] ...`: one experiment, or without one the paper's testbed comparison."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
+from hil.cli.exit_codes import ExitCode
+from hil.config import Config, ConfigError
+from hil.experiments import get_experiment
+from hil.loop import StopFlag
+from hil.safety import ReferenceOutsideLimits
+from hil.session import Session, SessionError, run_comparison
+from hil.vocabulary import ControllerChoice
+
+_SINGLE_RUN_OPTIONS = (
+    ("--controller", "controller"),
+    ("--kdist", "kdist"),
+    ("--composition", "composition"),
+    ("--duration", "duration"),
+    ("--reboot-first", "reboot_first"),
+)
+
+
+def _configured(args: argparse.Namespace) -> Config:
+    """The configuration with the command line's changes, each validated like the file."""
+    config = checked_config(args.config)
+    if args.composition is not None:
+        config = config.changed("controller", composition=args.composition, option="--composition")
+    if args.kdist is not None:
+        config = config.changed("controller", kdist=args.kdist, option="--kdist")
+    if args.current_guard is not None:
+        config = config.changed(
+            "safety", current_guard=args.current_guard == "on", option="--current-guard"
+        )
+    if args.seed is not None:
+        config.changed("emulator", seed=args.seed, option="--seed")  # validated, used below
+    return config
+
+
+def _check_combinations(args: argparse.Namespace, embedded: bool, faults: tuple) -> None:
+    overrides = connection_overrides(args).given
+    if args.attach and args.emulate:
+        raise ConfigError(
+            "--attach and --emulate exclude each other: attach to a running `hil emulate`, or "
+            "let `hil run` start its own"
+        )
+    if overrides and args.config is None and not args.attach:
+        raise ConfigError(
+            f"{', '.join('--' + k.replace('_', '-') for k in overrides)} points a hardware "
+            "configuration at other ports: give --config FILE (or --attach for an emulator)"
+        )
+    if args.experiment is None:
+        ignored = [option for option, key in _SINGLE_RUN_OPTIONS if getattr(args, key)]
+        if ignored:
+            raise ConfigError(
+                f"{', '.join(ignored)} apply to one experiment; the comparison (no experiment) "
+                "runs its own plan: name an experiment (contact or impact)"
+            )
+        if not embedded and args.attach is None:
+            raise ConfigError(
+                "the comparison drives `pid` into the block until the actuator's overload "
+                "protection trips: it runs only on an emulated testbed (no --config, --emulate, "
+                "or --attach). On hardware, run one experiment at a time: hil run contact "
+                "--config ..."
+            )
+    if faults and not embedded:
+        raise ConfigError(
+            "--inject of an emulator fault needs the embedded emulator (no --config, or "
+            "--emulate); for a separate `hil emulate`, pass --inject to it"
+        )
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError(f"--duration: must be a finite time > 0 s, got {args.duration}")
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    config = _configured(args)
+    faults, overruns = parse_injections(args.inject)
+    embedded = (args.config is None or args.emulate) and not (args.attach and args.config is None)
+    _check_combinations(args, embedded, faults)
+    session = Session(
+        config,
+        embedded=embedded,
+        realtime=args.realtime,
+        attach=load_attach(args.attach) if args.attach else None,
+        overrides=connection_overrides(args),
+        seed=args.seed,
+        out_root=args.out,
+        plots=not args.no_plots,
+        json_output=args.json,
+    )
+    stop = StopFlag()
+    stop.install()
+    try:
+        if args.experiment is None:
+            outcome = run_comparison(
+                session,
+                faults=faults,
+                overruns=overruns,
+                current_guard=args.current_guard == "on",
+                stop=stop,
+            )
+            return ExitCode.OK if outcome.incomplete is None else ExitCode.FAILED
+        choice = ControllerChoice(
+            args.controller or config.controller.name, config.controller.kdist
+        )
+        result = session.run_one(
+            get_experiment(args.experiment),
+            choice,
+            faults=faults,
+            overruns=overruns,
+            duration_s=args.duration,
+            reboot_first=args.reboot_first,
+            stop=stop,
+        )
+        return ExitCode.OK if result.ok else ExitCode.FAILED
+    except SessionError as exc:
+        print(f"hil run: {exc}", file=sys.stderr)
+        return ExitCode.FAILED
+    except ReferenceOutsideLimits as exc:
+        print(f"hil run: {exc}", file=sys.stderr)
+        return ExitCode.USAGE
+    finally:
+        stop.restore()

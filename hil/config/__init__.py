@@ -1,0 +1,46 @@
+"""The configuration file: one TOML file describes the hardware, the robot model, the controller,
+the safety limits and the emulator.
+
+The same file drives the real robot (`hil run --config FILE`) and its emulation
+(`hil emulate --config FILE`). A sample for the paper's testbed ships as `hil/data/testbed.toml`
+(`hil config` prints it). The schema is declared once (`schema.py`, pydantic); command-line
+options go through the same validation (`Config.changed`).
+"""
+
+from hil.config.load import (
+    DEFAULT_CONFIG_NAME,
+    Config,
+    ConfigError,
+    default_config_text,
+    load_config,
+    parse_config,
+)
+from hil.config.schema import (
+    CanSection,
+    ControllerSection,
+    DynamixelSection,
+    EmulatorSection,
+    ForceSensorSection,
+    JointSection,
+    LoopSection,
+    ModelSection,
+    SafetySection,
+)
+
+__all__ = [
+    "DEFAULT_CONFIG_NAME",
+    "CanSection",
+    "Config",
+    "ConfigError",
+    "ControllerSection",
+    "DynamixelSection",
+    "EmulatorSection",
+    "ForceSensorSection",
+    "JointSection",
+    "LoopSection",
+    "ModelSection",
+    "SafetySection",
+    "default_config_text",
+    "load_config",
+    "parse_config",
+]

@@ -1,0 +1,164 @@
+"""Reading a configuration file, and changing it from the command line, through one validation.
+
+`load_config(path)` reads TOML and validates it against `hil.config.schema`; command-line
+options that change a value (`--kdist`, `--seed`, ...) go through `Config.changed(...)`, the same
+validation, so a value is refused the same way wherever it comes from. An error names the file
+(or the option), the key as written, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from pydantic import PrivateAttr, ValidationError
+
+from hil.config.schema import ConfigFile
+
+DEFAULT_CONFIG_NAME = "testbed.toml"
+
+
+class ConfigError(ValueError):
+    """A configuration file or option is malformed or inconsistent. The message says where."""
+
+
+class Config(ConfigFile):
+    """A validated configuration and where it came from (`source`)."""
+
+    _source: str = PrivateAttr(default="<built-in>")
+
+    @property
+    def source(self) -> str:
+        return self._source
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(joint.name for joint in self.joints)
+
+    def changed(self, section: str, *, option: str | None = None, **values: Any) -> Config:
+        """A copy with these keys of one section changed, validated like the file.
+
+        option: the command-line option the values come from, named in the error.
+        """
+        raw = self.model_dump(by_alias=True, exclude_unset=False)
+        if section not in raw or not isinstance(raw[section], dict):
+            raise KeyError(f"no section [{section}]")
+        raw[section] = {**raw[section], **values}
+        return _validated(raw, self.source, error_prefix=option)
+
+    def replaced(self, **sections: Any) -> Config:
+        """A copy with whole sections replaced (pydantic models or plain tables), validated."""
+        raw = self.model_dump(by_alias=True)
+        for name, value in sections.items():
+            key = "joint" if name == "joints" else name
+            if isinstance(value, list | tuple):
+                raw[key] = [v.model_dump() if hasattr(v, "model_dump") else v for v in value]
+            else:
+                raw[key] = value.model_dump() if hasattr(value, "model_dump") else value
+        return _validated(raw, self.source)
+
+    def record(self) -> dict[str, Any]:
+        """The configuration as plain JSON data, for a run's meta.json."""
+        return {"source": self.source, **self.model_dump(mode="json", by_alias=True)}
+
+
+def default_config_text() -> str:
+    return resources.files("hil").joinpath("data", DEFAULT_CONFIG_NAME).read_text()
+
+
+def load_config(path: str | Path | None = None) -> Config:
+    """Read and check a configuration file; None reads the built-in testbed sample."""
+    if path is None:
+        return parse_config(default_config_text(), source=f"<built-in {DEFAULT_CONFIG_NAME}>")
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"cannot read configuration file {path}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a text file: {exc}") from exc
+    return parse_config(text, source=str(path))
+
+
+def parse_config(text: str, source: str = "<string>") -> Config:
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: not valid TOML: {exc}") from exc
+    _refuse_moved_keys(raw, source)
+    return _validated(raw, source)
+
+
+def _validated(raw: dict[str, Any], source: str, *, error_prefix: str | None = None) -> Config:
+    """Validate; errors name `error_prefix` (a command-line option) or the source file."""
+    try:
+        config = Config.model_validate(raw)
+    except ValidationError as exc:
+        raise ConfigError(_describe(exc, raw, source, option=error_prefix)) from None
+    config._source = source
+    return config
+
+
+# Keys that moved in the split into buses / joints / model: say where they went.
+_MOVED_JOINT_KEYS = (
+    "stiffness_nm_per_rad",
+    "damping_nms_per_rad",
+    "servo_gain_per_s",
+    "link_inertia_kg_m2",
+    "gravity_moment_kg_m",
+)
+
+
+def _refuse_moved_keys(raw: dict[str, Any], source: str) -> None:
+    joints = raw.get("joint")
+    if not isinstance(joints, list):
+        return
+    for number, joint in enumerate(joints, start=1):
+        if isinstance(joint, dict):
+            moved = [key for key in _MOVED_JOINT_KEYS if key in joint]
+            if moved:
+                raise ConfigError(
+                    f"{source} [[joint]] #{number}: {moved} belong to the robot model now: "
+                    "move them to the [model] section (per joint: [model.joint.NAME]); "
+                    "`hil config` prints the current layout"
+                )
+
+
+def _describe(
+    exc: ValidationError, raw: dict[str, Any], source: str, option: str | None = None
+) -> str:
+    lines = []
+    for error in exc.errors(include_url=False):
+        where = f"{source} {_location(error['loc'], raw)}" if option is None else option
+        message = error["msg"]
+        if message.startswith("Value error, "):
+            message = message[len("Value error, ") :]
+        shown = ""
+        if error["type"] not in ("missing", "extra_forbidden") and "input" in error:
+            value = error["input"]
+            if not isinstance(value, dict | list):
+                shown = f" (got {value!r})"
+        if error["type"] == "extra_forbidden":
+            message = "unknown key"
+        lines.append(f"{where}: {message}{shown}")
+    return "; ".join(lines)
+
+
+def _location(loc: tuple[Any, ...], raw: dict[str, Any]) -> str:
+    """('joint', 0, 'dynamixel_id') -> "[[joint]] #1 'link' dynamixel_id"."""
+    if not loc:
+        return "(file)"
+    head, rest = loc[0], list(loc[1:])
+    if head in ("joint", "dynamixel", "can") and rest and isinstance(rest[0], int):
+        index = rest.pop(0)
+        table = raw.get(head)
+        name = ""
+        if isinstance(table, list) and index < len(table) and isinstance(table[index], dict):
+            name = f" {table[index].get('name')!r}" if "name" in table[index] else ""
+        where = f"[[{head}]] #{index + 1}{name}"
+    else:
+        where = f"[{head}]"
+    keys = ".".join(str(part) for part in rest)
+    return f"{where} {keys}".strip()

@@ -1,0 +1,282 @@
+"""The configuration file's sections, declared once (pydantic): types, ranges, units.
+
+A file is split the way a robot is: the buses (`[[dynamixel]]` chains, `[[can]]` channels),
+the joints (`[[joint]]`: which devices, their mounting and limits), the robot model the
+controller uses (`[model]`), the controller, the safety supervisor and the emulator. Device
+facts (ID ranges, baud rates, current limits, position ranges) are not repeated here: the
+drivers' own configurations check them when `hil` builds the buses (`hil.wiring`).
+
+Every number must be finite; bools are not numbers; unknown keys are refused.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from controller import COMPOSITION_READINGS
+from controller.model import DISCRETISATIONS
+from hil.vocabulary import ControllerKind, EmulatorClock, Reaction, SafetyCause
+
+Direction = Literal[1, -1]
+# The choices the controller package defines (one definition each, in controller/).
+CompositionName = Annotated[str, Field(json_schema_extra={"enum": list(COMPOSITION_READINGS)})]
+
+
+class Section(BaseModel):
+    """Common rules: strict types, finite numbers, no unknown keys, immutable."""
+
+    model_config = ConfigDict(
+        extra="forbid", strict=True, allow_inf_nan=False, frozen=True, populate_by_name=True
+    )
+
+
+class LoopSection(Section):
+    rate_hz: float = Field(200.0, gt=0, le=2000)  # Kim et al.: "The control frequency is 200 Hz"
+    stop_cycles: int = Field(5, ge=0, le=1000)  # hold commands at start-up and before shutdown
+    bus_read_timeout_ms: float = Field(2.0, gt=0, le=1000)  # a tick's wait for the TPDOs
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.rate_hz
+
+
+class DynamixelSection(Section):
+    """One RS-485 port with a chain of actuators of one model."""
+
+    name: str = Field("dynamixel", min_length=1)
+    port: str = ""
+    baudrate: int = Field(3_000_000, gt=0)
+    model: str = "H54-200-S500-R"
+    latency_timer_ms: float = Field(1.0, gt=0, le=1000)  # ROBOTIS advise 1 ms on FTDI adapters
+    return_delay_time_us: int = Field(0, ge=0)  # ROBOTIS advise 0 for fast sync reads
+
+
+class CanSection(Section):
+    """One CAN channel (python-can's `can.Bus(interface=..., channel=..., bitrate=...)`)."""
+
+    name: str = Field("can", min_length=1)
+    interface: str = Field("socketcan", min_length=1)
+    channel: str = Field("can0", min_length=1)
+    bitrate: int = Field(1_000_000, ge=0)  # 0: leave the adapter's
+    options: dict[str, Any] = Field(default_factory=dict)  # extra can.Bus(...) keyword args
+
+    def bus_kwargs(self) -> dict[str, Any]:
+        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel}
+        if self.bitrate:
+            kwargs["bitrate"] = self.bitrate
+        kwargs.update(self.options)
+        return kwargs
+
+
+class ForceSensorSection(Section):
+    node_id: int = Field(0, ge=0, le=127)  # 0: no force sensor
+    can: str | None = None  # the channel it is on (None: the only one)
+    direction: Direction = 1  # sign from its reading to a force pressing the link back
+    offset_n: float = 0.0  # its reading with nothing touching (subtracted)
+
+
+class JointSection(Section):
+    """One flexible joint: its actuator, its link encoder, their mounting and its limits."""
+
+    name: str = Field(min_length=1)
+    dynamixel_id: int
+    dynamixel: str | None = None  # the chain it is on (None: the only one)
+    encoder_node_id: int
+    can: str | None = None  # the CAN channel of its encoder (None: the only one)
+    encoder_counts_per_rev: int | None = Field(None, gt=0)  # None: the driver's RLC2IC figure
+    encoder_offset_rad: float = 0.0
+    encoder_direction: Direction = 1
+    motor_offset_rad: float = 0.0
+    motor_direction: Direction = 1
+    min_angle_rad: float = -1.0
+    max_angle_rad: float = 1.0
+    torque_limit_a: float | None = Field(None, gt=0)  # None: leave the device's Torque Limit
+
+    @model_validator(mode="after")
+    def _range(self) -> JointSection:
+        if not self.min_angle_rad < self.max_angle_rad:
+            raise ValueError(
+                f"min_angle_rad ({self.min_angle_rad}) must be below max_angle_rad "
+                f"({self.max_angle_rad})"
+            )
+        return self
+
+
+class JointModelSection(Section):
+    """Per-joint overrides of the model's gear and servo figures."""
+
+    stiffness_nm_per_rad: float | None = Field(None, gt=0)
+    damping_nms_per_rad: float | None = Field(None, ge=0)
+    servo_gain_per_s: float | None = Field(None, gt=0)
+
+
+class ModelSection(Section):
+    """The controller's (nominal) model of the robot: Kim et al. Sec. IV-A.
+
+    robot "single_link": every joint drives its own link swinging in a vertical plane
+    (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
+    Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
+    """
+
+    robot: Literal["single_link"] = "single_link"
+    stiffness_nm_per_rad: float = Field(2000.0, gt=0)
+    damping_nms_per_rad: float = Field(100.0, ge=0)
+    servo_gain_per_s: float = Field(10.0, gt=0)
+    link_inertia_kg_m2: float = Field(0.376, gt=0)
+    gravity_moment_kg_m: float = Field(0.63, ge=0)
+    joint: dict[str, JointModelSection] = Field(default_factory=dict)
+
+    def joint_figure(self, joint: str, key: str) -> float:
+        override = self.joint.get(joint)
+        value = getattr(override, key) if override is not None else None
+        return float(value if value is not None else getattr(self, key))
+
+
+class ControllerSection(Section):
+    name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
+    kdist: float = Field(1.0, ge=0)
+    q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
+    q_state: float = Field(1.0, ge=0)
+    r_input: float = Field(1.0, gt=0)
+    dob_cutoff_hz: float = Field(11.4, gt=0)
+    composition: str = "accumulated"
+    discretization: str = "euler"
+
+    @field_validator("composition")
+    @classmethod
+    def _composition(cls, value: str) -> str:
+        if value not in COMPOSITION_READINGS:
+            raise ValueError(f"must be one of {list(COMPOSITION_READINGS)}")
+        return value
+
+    @field_validator("discretization")
+    @classmethod
+    def _discretization(cls, value: str) -> str:
+        if value not in DISCRETISATIONS:
+            raise ValueError(f"must be one of {list(DISCRETISATIONS)}")
+        return value
+
+
+def _reaction(default: Reaction) -> Any:
+    return Field(default, strict=False)
+
+
+class SafetySection(Section):
+    """What the supervisor watches and what it does about it (README, "Safety").
+
+    link_noise_*: the link-encoder noise watch (hil/safety/watches.py LinkNoiseWatch).
+    overrun_window_s: missed deadlines are counted over this sliding window.
+    """
+
+    max_goal_rate_rad_s: float = Field(2.0, gt=0)
+    max_deflection_rad: float = Field(0.06, gt=0)
+    current_guard: bool = True
+    current_guard_fraction: float = Field(0.8, gt=0, le=1)
+    current_guard_time_s: float = Field(0.6, gt=0)
+    current_guard_backoff_rad: float = Field(0.05, ge=0)
+    link_stale_ticks: int = Field(4, ge=1)
+    bus_error_ticks: int = Field(3, ge=1)
+    overrun_limit: int = Field(20, ge=0)
+    link_noise_jump_rad: float = Field(1.0e-4, gt=0)
+    link_noise_window_ticks: int = Field(20, ge=2)
+    link_noise_fraction: float = Field(0.5, gt=0, le=1)
+    overrun_window_s: float = Field(1.0, gt=0)
+    on_hardware_error: Reaction = _reaction(Reaction.TORQUE_OFF)
+    on_torque_lost: Reaction = _reaction(Reaction.TORQUE_OFF)
+    on_bus_error: Reaction = _reaction(Reaction.TORQUE_OFF)
+    on_link_stale: Reaction = _reaction(Reaction.HOLD)
+    on_link_noisy: Reaction = _reaction(Reaction.HOLD)
+    on_deflection: Reaction = _reaction(Reaction.HOLD)
+    on_current: Reaction = _reaction(Reaction.BACK_OFF)
+    on_command_invalid: Reaction = _reaction(Reaction.HOLD)
+    on_overrun: Reaction = _reaction(Reaction.HOLD)
+    on_exit: Reaction = _reaction(Reaction.TORQUE_OFF)
+
+    def reaction(self, cause: SafetyCause) -> Reaction:
+        return getattr(self, cause.config_key)
+
+    @field_validator("on_exit")
+    @classmethod
+    def _exit(cls, value: Reaction) -> Reaction:
+        if value is Reaction.BACK_OFF:
+            raise ValueError("must be 'torque_off' or 'hold' (the torque state a run leaves)")
+        return value
+
+
+class EmulatorSection(Section):
+    """The virtual testbed's physics and behaviour (also checked when driving hardware)."""
+
+    clock: EmulatorClock = Field(EmulatorClock.LOCKSTEP, strict=False)
+    seed: int = Field(0, ge=0)
+    plant: dict[str, Any] = Field(default_factory=dict)  # plant parameter overrides
+    servo: dict[str, Any] = Field(default_factory=dict)  # servo parameter overrides
+    reboot_time_s: float = Field(0.5, gt=0)
+
+
+class ConfigFile(Section):
+    """A whole configuration file. `[dynamixel]`/`[can]` may be one table or an array of them."""
+
+    loop: LoopSection = Field(default_factory=LoopSection)
+    dynamixel: list[DynamixelSection] = Field(min_length=1)
+    can: list[CanSection] = Field(min_length=1)
+    force_sensor: ForceSensorSection = Field(default_factory=ForceSensorSection)
+    joints: list[JointSection] = Field(alias="joint", min_length=1)
+    model: ModelSection = Field(default_factory=ModelSection)
+    controller: ControllerSection = Field(default_factory=ControllerSection)
+    safety: SafetySection = Field(default_factory=SafetySection)
+    emulator: EmulatorSection = Field(default_factory=EmulatorSection)
+
+    @field_validator("dynamixel", "can", mode="before")
+    @classmethod
+    def _one_or_many(cls, value: Any) -> Any:
+        return [value] if isinstance(value, dict) else value
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ConfigFile:
+        _unique("[[dynamixel]] name", [d.name for d in self.dynamixel])
+        _unique("[[can]] name", [c.name for c in self.can])
+        _unique("[[joint]] name", [j.name for j in self.joints])
+        chains = {d.name for d in self.dynamixel}
+        channels = {c.name for c in self.can}
+        for joint in self.joints:
+            _refers(f"[[joint]] {joint.name!r} dynamixel", joint.dynamixel, chains)
+            _refers(f"[[joint]] {joint.name!r} can", joint.can, channels)
+        _refers("[force_sensor] can", self.force_sensor.can, channels)
+        for chain in chains:
+            ids = [j.dynamixel_id for j in self.joints if self.chain_of(j) == chain]
+            _unique(f"dynamixel_id on chain {chain!r}", ids)
+        for channel in channels:
+            nodes = [j.encoder_node_id for j in self.joints if self.channel_of(j) == channel]
+            if self.force_sensor.node_id and self.force_sensor_channel == channel:
+                nodes.append(self.force_sensor.node_id)
+            _unique(f"CAN node ID (encoders and force sensor) on channel {channel!r}", nodes)
+        unknown = sorted(set(self.model.joint) - {j.name for j in self.joints})
+        if unknown:
+            raise ValueError(f"[model.joint] names joints that do not exist: {unknown}")
+        return self
+
+    def chain_of(self, joint: JointSection) -> str:
+        return joint.dynamixel or self.dynamixel[0].name
+
+    def channel_of(self, joint: JointSection) -> str:
+        return joint.can or self.can[0].name
+
+    @property
+    def force_sensor_channel(self) -> str:
+        return self.force_sensor.can or self.can[0].name
+
+
+def _unique(what: str, values: list[Any]) -> None:
+    duplicates = sorted({v for v in values if values.count(v) > 1}, key=str)
+    if duplicates:
+        raise ValueError(f"duplicate {what}: {duplicates}")
+
+
+def _refers(where: str, name: str | None, names: set[str]) -> None:
+    if name is None:
+        if len(names) > 1:
+            raise ValueError(f"{where}: required when there are several ({sorted(names)})")
+    elif name not in names:
+        raise ValueError(f"{where}: {name!r} is not one of {sorted(names)}")

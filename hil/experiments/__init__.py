@@ -1,0 +1,40 @@
+"""The experiments, one module each (see `base.py` for what an experiment holds).
+
+    contact   Kim et al., ICRA 2018, Fig. 5: the link driven into a block
+    impact    Kim et al., ICRA 2018, Fig. 6: an 80 N push while holding
+
+`EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
+name that does not exist.
+"""
+
+from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperiment, World
+from hil.experiments.contact import CONTACT
+from hil.experiments.impact import IMPACT
+
+EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (CONTACT, IMPACT)}
+# The experiments of the paper's testbed comparison (`hil run` without an experiment).
+TESTBED_COMPARISON: tuple[Experiment, ...] = (CONTACT, IMPACT)
+
+
+def get_experiment(name: str) -> Experiment:
+    try:
+        return EXPERIMENTS[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown experiment {name!r}; choose one of {sorted(EXPERIMENTS)}"
+        ) from None
+
+
+__all__ = [
+    "CONTACT",
+    "EXPERIMENTS",
+    "IMPACT",
+    "TESTBED_COMPARISON",
+    "Experiment",
+    "Obstacle",
+    "Push",
+    "Ramp",
+    "TestbedExperiment",
+    "World",
+    "get_experiment",
+]

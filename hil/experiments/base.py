@@ -1,0 +1,172 @@
+"""What an experiment is: a reference for every joint, a world, metrics, a plot, the paper's claims.
+
+An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
+    reference       the desired link angle of every joint over time (`reference_table` samples
+                    it once per run on the loop's grid: no per-tick work)
+    world           what the world does to the robot: an obstacle, pushes. On hardware the user
+                    makes it happen; the emulator builds it from the same figures
+    phase           a named phase of the experiment at a time (a walk schedules Kdist by it)
+    metrics         the figures it reports, over all joints, from a run's log
+    marks           what its plots mark (the obstacle, the pushes, the first contact)
+    comparison      its figure across controllers, the paper's claims it checks (`relations`)
+                    and the metrics columns of the report table
+Adding an experiment is one new module plus a line in `hil/experiments/__init__.py`.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hil.output.plots import ComparisonRun, WorldMarks
+from hil.output.plots import Push as PushMark
+from hil.output.records import RunEntry
+from hil.output.report import Column, Relation
+from hil.output.rundir import RunData
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """Cosine ramp of the reference from `start_rad` to `end_rad` between two times."""
+
+    start_s: float
+    duration_s: float
+    start_rad: float
+    end_rad: float
+
+    def value(self, time_s: float) -> float:
+        if time_s <= self.start_s:
+            return self.start_rad
+        if time_s >= self.start_s + self.duration_s:
+            return self.end_rad
+        phase = (time_s - self.start_s) / self.duration_s
+        return self.start_rad + (self.end_rad - self.start_rad) * 0.5 * (
+            1 - math.cos(math.pi * phase)
+        )
+
+
+@dataclass(frozen=True)
+class Push:
+    """A push on the load of `joint`, perpendicular to its link; negative pushes the load down."""
+
+    start_s: float
+    duration_s: float
+    force_n: float
+    joint: int = 0
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A block with a force sensor: the link angle at which the load touches it."""
+
+    contact_angle_rad: float
+
+
+@dataclass(frozen=True)
+class World:
+    """What the world does during the experiment (experiment time, from its start)."""
+
+    pushes: tuple[Push, ...] = ()
+    obstacle: Obstacle | None = None
+
+
+class Experiment(abc.ABC):
+    """One experiment; see the module docstring. Subclasses are frozen dataclasses."""
+
+    name: str
+    title: str
+    duration_s: float
+    world: World
+
+    # --- the reference ---------------------------------------------------------------------
+    @abc.abstractmethod
+    def reference(self, time_s: float) -> float | np.ndarray:
+        """The desired link angle(s) [rad] at experiment time `time_s`: one value for every
+        joint, or one per joint."""
+
+    def reference_table(self, period_s: float, ticks: int, n_joints: int) -> np.ndarray:
+        """The reference on the loop's grid: ticks x n_joints [rad], row k at k * period_s."""
+        table = np.empty((ticks, n_joints))
+        for k in range(ticks):
+            table[k] = self.reference(k * period_s)
+        return table
+
+    def reference_range(self, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per joint, the lowest and highest reference (to check against the joints' limits)."""
+        ticks = max(2, int(round(self.duration_s / 0.005)) + 1)
+        table = self.reference_table(self.duration_s / (ticks - 1), ticks, n_joints)
+        return table.min(axis=0), table.max(axis=0)
+
+    def phase(self, time_s: float) -> str:
+        """The experiment's phase at `time_s` (a single phase unless an experiment has more)."""
+        return self.name
+
+    # --- after a run -----------------------------------------------------------------------
+    @abc.abstractmethod
+    def metrics(self, run: RunData) -> dict[str, Any]:
+        """The figures this experiment reports, from a run's log (over all joints)."""
+
+    def marks(self, run: RunData) -> WorldMarks:
+        """What a plot of this run marks; times in loop time (after any re-homing)."""
+        start = run.experiment_start_s
+        obstacle = self.world.obstacle
+        return WorldMarks(
+            pushes=tuple(
+                PushMark(p.start_s + start, p.duration_s, p.force_n) for p in self.world.pushes
+            ),
+            obstacle_angle_rad=obstacle.contact_angle_rad if obstacle else None,
+            title=self.title,
+            experiment=self.name,
+        )
+
+    # --- across controllers ----------------------------------------------------------------
+    def relations(self, entries: Sequence[RunEntry]) -> list[Relation]:
+        """The paper's claims about this experiment, checked against the runs' metrics."""
+        return []
+
+    def comparison_figure(
+        self, runs: Sequence[ComparisonRun], path: Path, setup: str
+    ) -> Path | None:
+        """The experiment's figure across controllers (None: it has none)."""
+        return None
+
+    @property
+    def figure_name(self) -> str:
+        return f"{self.name}.png"
+
+    @property
+    def report_columns(self) -> tuple[Column, ...]:
+        """The metrics shown in the report table, in order, with their headers and formats."""
+        return ()
+
+
+@dataclass(frozen=True)
+class TestbedExperiment(Experiment, abc.ABC):
+    """An experiment of the 1-DoF testbed: the same reference for every joint, made of ramps
+    from `initial_angle_rad`."""
+
+    __test__ = False  # not a pytest test class
+
+    name: str
+    title: str
+    duration_s: float
+    initial_angle_rad: float
+    ramps: tuple[Ramp, ...] = ()
+    world: World = World()
+
+    def reference(self, time_s: float) -> float:
+        value = self.initial_angle_rad
+        for ramp in self.ramps:
+            if time_s >= ramp.start_s:
+                value = ramp.value(time_s)
+        return value
+
+    def reference_range(self, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
+        ends = [self.initial_angle_rad, *(r.end_rad for r in self.ramps)]
+        return np.full(n_joints, min(ends)), np.full(n_joints, max(ends))

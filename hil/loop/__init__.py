@@ -1,0 +1,37 @@
+"""The 200 Hz loop: clocks, the phases of a run, the start gate, re-homing, every exit path.
+
+clock.py               lock-step and wall clocks on a fixed grid
+timeline.py            the phases of a run by tick (hold, homing, experiment, stop)
+start_gate.py          tick 0: refuse to start, or the sample to start from
+homing.py              the slow re-homing after a fault
+controller_factory.py  the configured robot model + a controller choice -> a controller
+request.py             what a run is asked to do; Ctrl-C / SIGTERM
+runner.py              the loop itself (`Loop`, `run_experiment`)
+"""
+
+from hil.loop.clock import LockstepClock, LoopClock, Tick, WallClock
+from hil.loop.controller_factory import build_controller, joint_params
+from hil.loop.homing import HomingPlan, plan_homing
+from hil.loop.request import RunRequest, StopFlag
+from hil.loop.runner import LOST_BUS_ERRORS, Loop, run_experiment
+from hil.loop.start_gate import StartRefused
+from hil.loop.timeline import Phase, Timeline
+
+__all__ = [
+    "LOST_BUS_ERRORS",
+    "HomingPlan",
+    "LockstepClock",
+    "Loop",
+    "LoopClock",
+    "Phase",
+    "RunRequest",
+    "StartRefused",
+    "StopFlag",
+    "Tick",
+    "Timeline",
+    "WallClock",
+    "build_controller",
+    "joint_params",
+    "plan_homing",
+    "run_experiment",
+]

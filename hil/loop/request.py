@@ -1,0 +1,54 @@
+"""What a run is asked to do (`RunRequest`), and how Ctrl-C / SIGTERM reach it (`StopFlag`)."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hil.experiments import Experiment
+from hil.vocabulary import ControllerChoice
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    experiment: Experiment
+    choice: ControllerChoice
+    out_dir: Path
+    duration_s: float | None = None
+    overruns: tuple[tuple[float, float], ...] = ()  # injected loop overruns (start, duration)
+    reboot_first: bool = False
+    on_event: Callable[[str], None] | None = None  # a line per safety event (stderr)
+    on_progress: Callable[[float, float], None] | None = None  # (loop time, run duration)
+
+    @property
+    def run_duration_s(self) -> float:
+        return self.duration_s if self.duration_s is not None else self.experiment.duration_s
+
+
+class StopFlag:
+    """Set by SIGINT/SIGTERM; the loop checks it every tick and leaves through its `finally`.
+
+    A session that runs several experiments installs one for all of them (`hil run` with no
+    experiment stops the whole plan on Ctrl-C); `run_experiment` installs its own otherwise.
+    """
+
+    def __init__(self) -> None:
+        self.reason: str | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __call__(self, signum: int, _frame: object) -> None:
+        self.reason = f"{signal.Signals(signum).name}"
+
+    def install(self) -> None:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self)
+
+    def restore(self) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()

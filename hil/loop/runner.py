@@ -1,0 +1,452 @@
+"""One run of an experiment: the 200 Hz loop from bus to controller to bus, and every exit path.
+
+Each cycle is `read -> watch -> propose -> shape -> write -> log` (in the manner of vulp's
+Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends on the phase
+(hil/loop/timeline.py):
+    tick 0      read; the start gate (hil/loop/start_gate.py); torque on (goal = present);
+                plan the re-homing if the link starts away from the experiment's start
+    HOLD        hold the present position
+    HOMING      the slow ramp, followed by the actuator's own position servo
+    EXPERIMENT  the controller along the experiment's reference (it starts bumplessly from the
+                goal in force; it is not stepped while the supervisor holds a safe state)
+    STOP        hold the last goal; then the configured exit torque state
+Every tick reads the bus once, so in lock-step emulation tick k is the plant at k periods.
+
+When the supervisor latches torque_off, the loop turns torque off at once; if the bus does not
+take it (a silent device), it tries again every DISABLE_RETRY_TICKS ticks, not every tick (each
+try costs the driver's timeouts), and on the tick the actuators answer again.
+
+Every exit path - the end, Ctrl-C, SIGTERM, an exception in the controller or the bus - goes
+through the same `finally`: the configured exit torque state is applied (best effort on every
+joint, whatever the bus raises), the bus is closed, summary.json is written, and the log files
+are closed. The log is line-buffered, so what was logged before a crash is on disk.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import can
+import numpy as np
+
+from controller import JointController
+from drivers.joint_bus import BusError, JointBus, JointSample
+from hil.config import Config
+from hil.experiments import Experiment
+from hil.loop.clock import LoopClock, Tick
+from hil.loop.controller_factory import build_controller, joint_params
+from hil.loop.homing import HomingPlan, plan_homing
+from hil.loop.request import RunRequest, StopFlag
+from hil.loop.start_gate import StartRefused, start_gate
+from hil.loop.timeline import Phase, Timeline
+from hil.output.records import RunResult
+from hil.output.rundir import load_run
+from hil.output.runlog import RunLog
+from hil.safety import SafeState, Supervisor
+from hil.vocabulary import Reaction, RunEnding, Termination
+from hil.wiring.hardware import configured_current_limits_a
+
+DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
+# What a bus raises when it is lost: the JointBus contract says BusError, but a port that
+# vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
+# (serial.SerialException is an OSError).
+LOST_BUS_ERRORS = (BusError, can.CanError, OSError)
+
+
+@dataclass
+class _TorqueState:
+    """What the loop knows of the actuators' torque and of its tries to turn it off."""
+
+    on: bool = False
+    retry_tick: int = 0
+    failures: int = 0
+    answered_before: bool = True
+
+
+class Loop:
+    """One run; `run()` returns its result. See the module docstring."""
+
+    def __init__(
+        self,
+        config: Config,
+        request: RunRequest,
+        bus: JointBus,
+        clock: LoopClock,
+        meta: dict[str, Any],
+        stop: StopFlag,
+    ) -> None:
+        self.config = config
+        self.request = request
+        self.experiment: Experiment = request.experiment
+        self.bus = bus
+        self.clock = clock
+        self.stop = stop
+        self.period = clock.period_s
+        n = len(config.joints)
+        self.n = n
+        self.devices = bus.devices()
+        self.supervisor = Supervisor(
+            config.safety,
+            config.joint_names,
+            self.devices,
+            np.array([j.min_angle_rad for j in config.joints]),
+            np.array([j.max_angle_rad for j in config.joints]),
+            self.period,
+            joint_params(config).stiffness_nm_per_rad,
+        )
+        low, high = self.experiment.reference_range(n)
+        self.supervisor.check_reference(low, high)
+        self.controller: JointController = build_controller(config, request.choice, self.period)
+        self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
+        self.log = RunLog(request.out_dir, config.joint_names, meta)
+        self.homing: HomingPlan | None = None
+        self.references = np.zeros((0, n))
+        self.torque = _TorqueState()
+        self.current_limits = np.full(n, math.nan)
+        self.ending = RunEnding(Termination.COMPLETED)
+        self.opened = False
+        self.ticks_done = 0
+        self._hold_goal = np.full(n, math.nan)
+        self._last_goal = np.full(n, math.nan)
+        self._last_link = np.full(n, math.nan)
+        self._no_goal = np.full(n, math.nan)  # logged on ticks that send nothing
+        self._zeros = np.zeros(n)
+        self._controller_started = False
+        self._last_step_tick = -1
+        self._logged_events = self._logged_notices = 0
+
+    # --- the run -------------------------------------------------------------------------------
+    def run(self) -> RunResult:
+        started = time.perf_counter()
+        try:
+            self.bus.open()
+            self.opened = True
+            self.log.event(0.0, "open", f"bus open: {', '.join(self.config.joint_names)}")
+            self._cycles()
+        except StartRefused as exc:
+            self.ending = RunEnding(Termination.START_REFUSED, str(exc))
+            self.log.event(0.0, "start_refused", str(exc))
+        except LOST_BUS_ERRORS as exc:
+            self.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
+            self.log.event(self._now(), "bus_failure", f"{type(exc).__name__}: {exc}")
+        except Exception as exc:
+            self.ending = RunEnding(Termination.ERROR, f"{type(exc).__name__}: {exc}")
+            self.log.event(self._now(), "error", self.ending.text)
+            raise
+        finally:
+            self._finish(time.perf_counter() - started)
+        return self.result
+
+    def _cycles(self) -> None:
+        while self.ticks_done < self.timeline.end:
+            if self.stop.reason is not None:
+                self.ending = RunEnding(Termination.INTERRUPTED, self.stop.reason)
+                return
+            tick = self.clock.next_tick()
+            # The clock's grid index: after a missed deadline the wall clock skips ticks, and the
+            # reference, the faults and the log follow the grid, not the loop's count.
+            if tick.index >= self.timeline.end:
+                break
+            self._cycle(tick)
+            self.ticks_done = tick.index + 1
+        first = self.supervisor.first_trip
+        if first is not None:
+            self.ending = RunEnding(Termination.SAFETY_STOP, f"{first.cause} ({first.action})")
+
+    def _cycle(self, tick: Tick) -> None:
+        k = tick.index
+        t_read = time.perf_counter()
+        sample = self.bus.read()
+        t_compute = time.perf_counter()
+        if k == 0:
+            sample = self._start(sample)
+        self._watch(tick, sample)
+        reference = self.references[k]
+        proposed = self._propose(k, sample, reference)
+        goal = self.supervisor.command(proposed, sample) if self.torque.on else None
+        phase = self.timeline.phase(k)
+        if proposed is not None and phase is Phase.EXPERIMENT and self._controller_started:
+            self.controller.notify_applied(goal if goal is not None else proposed)
+        if goal is not None:
+            self.bus.write(goal)
+            self._last_goal = goal
+        self._log_safety()
+        t_done = time.perf_counter()
+        self._log_row(tick, sample, reference, goal, phase)
+        self.log.write_timing(k, t_compute - t_read, t_done - t_compute, 0.0)
+        on_progress = self.request.on_progress
+        if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
+            on_progress(tick.time_s, self.timeline.end * self.period)
+
+    # --- tick 0 ------------------------------------------------------------------------------
+    def _start(self, sample: JointSample) -> JointSample:
+        sample = start_gate(
+            self.config, sample, self.bus, self.devices, self.request.reboot_first, self.log.event
+        )
+        reported = np.asarray(self.bus.current_limits_a(), dtype=float)
+        configured = np.array(configured_current_limits_a(self.config))
+        self.current_limits = np.where(np.isfinite(reported), reported, configured)
+        self.supervisor.set_current_limits(self.current_limits)
+        if self.config.safety.current_guard and not np.isfinite(self.current_limits).all():
+            self.log.event(
+                0.0,
+                "current_guard_inactive",
+                "the software overload guard cannot act: an actuator's current limit is "
+                "unknown (set torque_limit_a in the configuration)",
+            )
+        self.bus.enable()
+        self.torque.on = True
+        self._hold_goal = sample.motor_angle_rad.copy()
+        self._last_goal = self._hold_goal.copy()
+        self.log.event(0.0, "torque_on", "torque on; holding the present position")
+        start = np.broadcast_to(self.experiment.reference(0.0), (self.n,))
+        self.homing = plan_homing(sample.link_angle_rad, start)
+        if self.homing is not None:
+            self.timeline = self.timeline.with_homing(self.homing.ticks(self.period))
+            self.log.event(0.0, "homing", self.homing.describe())
+        self.references = self._reference_table()
+        return sample
+
+    def _reference_table(self) -> np.ndarray:
+        """The link reference of every tick of the run (ticks x joints)."""
+        timeline = self.timeline
+        table = np.empty((timeline.end, self.n))
+        for k in range(timeline.end):
+            if self.homing is not None and k < timeline.hold_ticks + timeline.homing_ticks:
+                table[k] = self.homing.reference((k - timeline.hold_ticks) * self.period)
+            else:
+                table[k] = self.experiment.reference(timeline.experiment_time_s(k))
+        return table
+
+    # --- each tick ---------------------------------------------------------------------------
+    def _watch(self, tick: Tick, sample: JointSample) -> None:
+        k, time_s = tick.index, tick.time_s
+        overrun = self._injected_overrun(time_s)
+        if tick.skipped or overrun:
+            self.supervisor.note_overrun(k, time_s, tick.skipped)
+        for note in sample.notes:
+            self.log.event(time_s, "bus_note", note, tick=k)
+        self.supervisor.observe(k, time_s, sample)
+        self._log_safety()
+        if k == 0:  # this tick's sample predates the enable: expect torque from the next one on
+            self.supervisor.torque_enabled(self._hold_goal)
+        self._torque_off_if_latched(k, time_s, sample)
+
+    def _torque_off_if_latched(self, k: int, time_s: float, sample: JointSample) -> None:
+        torque = self.torque
+        answered = bool(sample.motor_valid.all())
+        due = k >= torque.retry_tick or (answered and not torque.answered_before)
+        if self.supervisor.state == SafeState.TORQUE_OFF and torque.on and due:
+            why = "safety stop" + (f" (try {torque.failures + 1})" if torque.failures else "")
+            torque.on = not self._disable(time_s, why, quiet=torque.failures > 0)
+            self.supervisor.torque_disabled()
+            if torque.on:
+                torque.failures += 1
+                torque.retry_tick = k + DISABLE_RETRY_TICKS
+        torque.answered_before = answered
+
+    def _propose(self, k: int, sample: JointSample, reference: np.ndarray) -> np.ndarray | None:
+        """The goal this phase proposes (None: the controller cannot step this tick)."""
+        link = np.where(sample.link_valid, sample.link_angle_rad, self._last_link)
+        self._last_link = link
+        phase = self.timeline.phase(k)
+        if phase is Phase.STOP:
+            return self._last_goal
+        if phase is Phase.HOLD:
+            return self._hold_goal
+        if phase is Phase.HOMING:
+            return reference  # the actuator's own servo follows the ramp
+        if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
+            return None
+        controller = self.controller
+        if not self._controller_started:
+            controller.reset(sample.motor_angle_rad, link, reference)
+            self._controller_started = True
+        elif k - self._last_step_tick > 1:  # ticks without a step: do not read them as motion
+            controller.resync(sample.motor_angle_rad, link)
+        self._last_step_tick = k
+        return controller.step(sample.motor_angle_rad, link, reference)
+
+    def _injected_overrun(self, time_s: float) -> bool:
+        for start, duration in self.request.overruns:
+            if start <= time_s < start + max(duration, self.period):
+                if not self.clock.deterministic:
+                    time.sleep(self.period * 1.5)  # really miss the deadline
+                return True
+        return False
+
+    # --- the record ----------------------------------------------------------------------------
+    def _log_row(
+        self,
+        tick: Tick,
+        sample: JointSample,
+        reference: np.ndarray,
+        goal: np.ndarray | None,
+        phase: Phase,
+    ) -> None:
+        terms = self.controller.terms if self._controller_started else None
+        zeros = self._zeros
+        self.log.write_row(
+            tick.index,
+            tick.time_s,
+            (sample.extra.get("contact_force_n", math.nan),),
+            self.supervisor.state.name.lower(),
+            phase.value,
+            tick.skipped,
+            (
+                reference,
+                goal if goal is not None else self._no_goal,
+                sample.motor_angle_rad,
+                sample.link_angle_rad,
+                sample.link_angle_rad - sample.motor_angle_rad,
+                sample.motor_velocity_rad_s,
+                sample.motor_current_a,
+                sample.actuator_fault,
+                sample.torque_enabled,
+                sample.motor_valid,
+                sample.link_valid,
+                sample.link_age_s,
+                terms.uc if terms else zeros,
+                terms.d_hat if terms else zeros,
+                terms.ug if terms else zeros,
+            ),
+            tick.slack_s,
+            tick.measured_period_s,
+        )
+
+    def _log_safety(self) -> None:
+        """Write the supervisor's new events and notices to events.jsonl (and say them)."""
+        supervisor = self.supervisor
+        for event in supervisor.events[self._logged_events :]:
+            self.log.event(
+                event.time_s,
+                str(event.cause),
+                event.message,
+                joint=event.joint,
+                action=str(event.action),
+                state=event.state,
+                tick=event.tick,
+            )
+            if self.request.on_event is not None:
+                self.request.on_event(
+                    f"  [{event.time_s:7.3f} s] {event.cause} -> {event.action}: {event.message}"
+                )
+        for notice in supervisor.notices[self._logged_notices :]:
+            self.log.event(
+                notice.time_s,
+                str(notice.kind),
+                notice.message,
+                joint=notice.joint,
+                tick=notice.tick,
+            )
+        self._logged_events, self._logged_notices = len(supervisor.events), len(supervisor.notices)
+
+    def _now(self) -> float:
+        return self.ticks_done * self.period
+
+    # --- every exit path -----------------------------------------------------------------------
+    def _disable(self, time_s: float, why: str, quiet: bool = False) -> bool:
+        """Torque off on every joint; False (and logged, unless `quiet`) if the bus did not take it.
+
+        Any exception counts as a failure: on an exit path a lost port may raise what it likes,
+        and the log must still be completed.
+        """
+        try:
+            self.bus.disable()
+        except Exception as exc:  # noqa: BLE001 - best effort, reported
+            if not quiet:
+                self.log.event(
+                    time_s, "torque_off_failed", f"{why}: could not turn torque off: {exc}"
+                )
+            return False
+        self.log.event(time_s, "torque_off", f"{why}: torque off")
+        return True
+
+    def _exit_path(self) -> list[str]:
+        """The configured exit torque state and the bus closed; notes for summary.json."""
+        time_s = self._now()
+        if not self.opened:
+            return ["bus never opened: nothing was sent"]
+        notes: list[str] = []
+        if self.config.safety.on_exit is Reaction.TORQUE_OFF:
+            ok = self._disable(time_s, "exit")
+            notes.append("torque off" if ok else "torque off FAILED (see events.jsonl)")
+        else:
+            notes.append(f"torque left {'on' if self.torque.on else 'off'} (on_exit = hold)")
+            self.log.event(time_s, "exit_hold", "exit: torque left as it was (on_exit = hold)")
+        try:
+            self.bus.close()
+        except Exception as exc:  # noqa: BLE001 - best effort, reported
+            notes.append(f"close failed: {exc}")
+            self.log.event(time_s, "close_failed", str(exc))
+        return notes
+
+    def _finish(self, wall_time_s: float) -> None:
+        self._log_safety()
+        exit_notes = self._exit_path()
+        metrics = self._metrics()
+        choice = self.request.choice
+        summary = {
+            "experiment": self.experiment.name,
+            "controller": str(choice.kind),
+            "controller_label": choice.label,
+            "kdist": choice.kdist if choice.kind.has_dob else None,
+            "termination": self.ending.text,
+            "ticks": self.ticks_done,
+            "wall_time_s": wall_time_s,
+            "exit": exit_notes,
+            "safety_events": [e.record() for e in self.supervisor.events],
+            "safety_notices": [n.record() for n in self.supervisor.notices],
+            "safety_counters": self.supervisor.counters(),
+            "homing": self.homing.to_dict() if self.homing is not None else None,
+            "experiment_start_s": self.timeline.experiment_start_s,
+            "current_limit_a": self.current_limits.tolist(),
+            "metrics": metrics,
+        }
+        self.log.write_summary(summary)
+        self.log.close()
+        self.result = RunResult(
+            self.request.out_dir,
+            self.ending,
+            metrics,
+            list(self.supervisor.events),
+            self.ticks_done,
+            wall_time_s,
+        )
+
+    def _metrics(self) -> dict[str, Any]:
+        if self.log.rows < 2:
+            return {}
+        self.log.close()  # flushed and complete before it is read back
+        try:
+            run = load_run(self.log.dir)  # summary.json comes after the metrics: say when the
+            # experiment's timeline started here
+            summary = {"experiment_start_s": self.timeline.experiment_start_s}
+            return self.experiment.metrics(dataclasses.replace(run, summary=summary))
+        except (ValueError, KeyError) as exc:
+            return {"error": str(exc)}
+
+
+def run_experiment(
+    config: Config,
+    request: RunRequest,
+    bus: JointBus,
+    clock: LoopClock,
+    meta: dict[str, Any],
+    *,
+    stop: StopFlag | None = None,
+) -> RunResult:
+    """Run one experiment on `bus` (built, not yet opened). See the module docstring."""
+    own_stop = stop is None
+    if stop is None:
+        stop = StopFlag()
+        stop.install()
+    try:
+        return Loop(config, request, bus, clock, meta, stop).run()
+    finally:
+        if own_stop:
+            stop.restore()

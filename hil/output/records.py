@@ -1,0 +1,38 @@
+"""What a run leaves behind for the report: its ending, metrics and safety events."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hil.vocabulary import ControllerChoice, RunEnding, SafetyEvent, Termination
+
+
+@dataclass
+class RunResult:
+    """One run: where it wrote, how it ended, its metrics, what the supervisor did."""
+
+    out_dir: Path
+    ending: RunEnding
+    metrics: dict[str, Any]
+    safety_events: list[SafetyEvent] = field(default_factory=list)
+    ticks: int = 0
+    wall_time_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.ending.ok
+
+    @property
+    def termination(self) -> Termination:
+        return self.ending.termination
+
+
+@dataclass(frozen=True)
+class RunEntry:
+    """One run of a comparison: which experiment, which controller, what came of it."""
+
+    experiment: str
+    choice: ControllerChoice
+    result: RunResult

@@ -1,0 +1,101 @@
+"""Run directories: their names (built once), and reading one back (`load_run`)."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hil.output.runlog import read_log
+
+_JOINT_COLUMN = re.compile(r"^link_angle_rad\[(.+)\]$")
+
+
+def timestamp() -> str:
+    """The prefix of run directory names: 20261201-154213."""
+    return datetime.now().strftime("%Y%m%d-%H%M%S")
+
+
+def unique_dir(path: Path) -> Path:
+    """`path`, or `path-2`, `path-3`, ... whichever does not exist yet."""
+    candidate, n = path, 1
+    while candidate.exists():
+        n += 1
+        candidate = path.with_name(f"{path.name}-{n}")
+    return candidate
+
+
+@dataclass(frozen=True)
+class RunData:
+    """What a run directory holds (see hil.output.runlog): log columns, meta, summary, events."""
+
+    out_dir: Path
+    columns: dict[str, np.ndarray]
+    meta: dict[str, Any]
+    summary: dict[str, Any]
+    events: tuple[dict[str, Any], ...]
+    joint_names: tuple[str, ...]  # ("",) for a single-joint log (no column suffixes)
+
+    @property
+    def time_s(self) -> np.ndarray:
+        return self.columns["time_s"]
+
+    def signal(self, name: str, joint: str = "") -> np.ndarray:
+        """A per-joint column: `name` for a single-joint log, `name[joint]` otherwise."""
+        key = f"{name}[{joint}]" if joint else name
+        try:
+            return self.columns[key]
+        except KeyError:
+            raise KeyError(f"{self.out_dir / 'log.csv'} has no column {key!r}") from None
+
+    def per_joint(self, name: str) -> list[np.ndarray]:
+        """A per-joint column for every joint, in joint order."""
+        return [self.signal(name, joint) for joint in self.joint_names]
+
+    @property
+    def label(self) -> str:
+        return str(self.meta.get("controller_label") or self.meta.get("controller", "?"))
+
+    @property
+    def termination(self) -> str:
+        return str(self.summary.get("termination", "unknown (no summary.json)"))
+
+    @property
+    def experiment_start_s(self) -> float:
+        """Loop time at which the experiment's own timeline began (after any re-homing)."""
+        return float(self.summary.get("experiment_start_s") or 0.0)
+
+
+def load_run(out_dir: Path) -> RunData:
+    """Read a run directory written by hil.output.runlog.RunLog; only log.csv is required."""
+    out_dir = Path(out_dir)
+    log_path = out_dir / "log.csv"
+    if not log_path.is_file():
+        raise FileNotFoundError(f"{out_dir} holds no log.csv: is it a run directory?")
+    columns = read_log(log_path)
+    if "time_s" not in columns:
+        raise ValueError(f"{log_path} has no time_s column: not a hil run log")
+    suffixed = tuple(m.group(1) for c in columns if (m := _JOINT_COLUMN.match(c)))
+    events: list[dict[str, Any]] = []
+    events_path = out_dir / "events.jsonl"
+    if events_path.is_file():
+        events = [json.loads(line) for line in events_path.read_text().splitlines() if line]
+    return RunData(
+        out_dir=out_dir,
+        columns=columns,
+        meta=_read_json(out_dir / "meta.json"),
+        summary=_read_json(out_dir / "summary.json"),
+        events=tuple(events),
+        joint_names=suffixed or ("",),
+    )
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        return {}
+    return json.loads(path.read_text())

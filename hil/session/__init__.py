@@ -1,0 +1,13 @@
+"""Where runs happen: one run on a setup (`Session`), and the paper's comparison."""
+
+from hil.session.comparison import COMPARISON_CHOICES, ComparisonOutcome, run_comparison
+from hil.session.session import ConnectionOverrides, Session, SessionError
+
+__all__ = [
+    "COMPARISON_CHOICES",
+    "ComparisonOutcome",
+    "ConnectionOverrides",
+    "Session",
+    "SessionError",
+    "run_comparison",
+]

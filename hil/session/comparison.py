@@ -1,0 +1,138 @@
+"""The paper's testbed comparison: both experiments x the paper's controllers, then one report.
+
+The plan: for each experiment of `TESTBED_COMPARISON`, pid, gc, gc+lqr, and gc+lqr+dob with
+Kdist 0.5 and 1, then the DOB once more (Kdist 1) with the other reading of the paper's (25), so
+the report shows what the choice of reading does (the lab's accumulated total vs the literal
+uc(tk - dt)). A run ending in a safety stop is a result of the comparison; one that did not
+run its course (interrupted, refused at its start, a lost bus) makes the comparison incomplete,
+and Ctrl-C stops the whole plan.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from hil.experiments import TESTBED_COMPARISON, Experiment
+from hil.loop import StopFlag
+from hil.output.plots import ComparisonRun
+from hil.output.records import RunEntry
+from hil.output.report import Report, ReportContent, write_report
+from hil.output.rundir import load_run, timestamp, unique_dir
+from hil.session.session import Session
+from hil.vocabulary import ControllerChoice, ControllerKind, Termination
+from sim_backend.scenario import FaultEvent
+
+COMPARISON_CHOICES: tuple[ControllerChoice, ...] = (
+    ControllerChoice(ControllerKind.PID),
+    ControllerChoice(ControllerKind.GC),
+    ControllerChoice(ControllerKind.GC_LQR),
+    ControllerChoice(ControllerKind.GC_LQR_DOB, 0.5),
+    ControllerChoice(ControllerKind.GC_LQR_DOB, 1.0),
+)
+OTHER_READING_KDIST = 1.0
+
+
+@dataclass(frozen=True)
+class ComparisonOutcome:
+    root: Path
+    report: Report
+    incomplete: str | None  # why the comparison is incomplete, None when every run ran its course
+
+
+def comparison_plan(
+    default_reading: str, experiments: Sequence[Experiment] = TESTBED_COMPARISON
+) -> list[tuple[Experiment, ControllerChoice]]:
+    other = "literal" if default_reading == "accumulated" else "accumulated"
+    choices = [
+        *COMPARISON_CHOICES,
+        ControllerChoice(ControllerKind.GC_LQR_DOB, OTHER_READING_KDIST, other),
+    ]
+    return [(experiment, choice) for experiment in experiments for choice in choices]
+
+
+def run_comparison(
+    session: Session,
+    *,
+    faults: tuple[FaultEvent, ...] = (),
+    overruns: tuple[tuple[float, float], ...] = (),
+    current_guard: bool = False,
+    stop: StopFlag | None = None,
+) -> ComparisonOutcome:
+    """Run the plan, write the report, print its table; see the module docstring.
+
+    The software current guard is off unless asked for: the paper's experiment shows the
+    actuator's own overload protection acting, and the guard would pre-empt it.
+    """
+    base = session.config.changed("safety", current_guard=current_guard)
+    root = unique_dir(session.out_root / f"{timestamp()}-comparison")
+    plan = comparison_plan(base.controller.composition)
+    entries: list[RunEntry] = []
+    started = time.perf_counter()
+    incomplete: str | None = None
+    session.config = base
+    for number, (experiment, choice) in enumerate(plan, start=1):
+        if stop is not None and stop.reason is not None:
+            incomplete = f"interrupted: {stop.reason}"
+            break
+        session.say(f"[{number}/{len(plan)}] {experiment.name}: {choice.label}")
+        result = session.run_one(
+            experiment,
+            choice,
+            faults=faults,
+            overruns=overruns,
+            out_dir=root / f"{experiment.name}-{choice.dir_name}",
+            print_result=False,
+            stop=stop,
+        )
+        entries.append(RunEntry(experiment.name, choice, result))
+        if not result.termination.ran_its_course:
+            incomplete = incomplete or f"{experiment.name} / {choice.label}: {result.ending}"
+            if result.termination is Termination.INTERRUPTED:
+                break
+    report = _write(root, entries, session.setup, time.perf_counter() - started)
+    print(report.table_text)
+    print(f"report: {report.markdown_path}")
+    if session.json_output:
+        print(json.dumps(report.summary, default=str))
+    if incomplete is not None:
+        print(f"comparison incomplete: {incomplete}")
+    return ComparisonOutcome(root, report, incomplete)
+
+
+def _write(root: Path, entries: Sequence[RunEntry], setup: str, wall_time_s: float) -> Report:
+    relations = []
+    figures: list[Path] = []
+    problems: list[str] = []
+    columns = []
+    for experiment in TESTBED_COMPARISON:
+        mine = [e for e in entries if e.experiment == experiment.name]
+        relations += experiment.relations(entries)
+        columns += list(experiment.report_columns)
+        runs = []
+        for entry in mine:
+            try:
+                data = load_run(entry.result.out_dir)
+            except (OSError, ValueError) as exc:
+                problems.append(f"{experiment.name} / {entry.choice.label}: {exc}")
+                continue
+            if len(data.time_s) > 1:
+                runs.append(ComparisonRun(entry.choice, data))
+        try:
+            path = experiment.comparison_figure(runs, root / experiment.figure_name, setup)
+        except (KeyError, ValueError) as exc:
+            problems.append(f"{experiment.figure_name}: {exc}")
+            continue
+        if path is not None:
+            figures.append(path)
+    content = ReportContent(
+        title="Testbed comparison: Kim et al., ICRA 2018, Figs. 5 and 6",
+        claims_source="Kim et al., ICRA 2018, Sec. IV-B",
+        setup=setup,
+        wall_time_s=wall_time_s,
+        columns=tuple(columns),
+    )
+    return write_report(root, entries, relations, figures, problems, content)

@@ -1,0 +1,233 @@
+"""Where a run happens and what the user sees: emulator lifetime, clocks, the run's record.
+
+Three setups, one code path for the loop:
+    embedded (no --config, or --emulate)  a fresh `hil emulate` child per run, lock-step clock
+                                          (deterministic) or, with --realtime, wall clock
+    attached (--attach JSON)              a `hil emulate` someone started: wall clock
+    hardware (--config FILE [--port ...]) the ports FILE names (or the overrides): wall clock
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import platform
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from hil.config import Config
+from hil.experiments import Experiment
+from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, run_experiment
+from hil.output.plots import plot_run
+from hil.output.records import RunResult
+from hil.output.rundir import load_run, timestamp, unique_dir
+from hil.output.versions import package_versions
+from hil.vocabulary import ControllerChoice, EmulatorClock
+from hil.wiring import Connection, make_bus
+from hil.wiring.emulation import EmbeddedEmulator, EmulatorStartError, emulator_spec
+from sim_backend.scenario import FaultEvent
+
+
+class SessionError(RuntimeError):
+    """A run could not start (emulator, ports): the message says what to check."""
+
+
+@dataclass(frozen=True)
+class ConnectionOverrides:
+    """--port / --baudrate / --can-interface / --can-channel, as given (None: not given)."""
+
+    port: str | None = None
+    baudrate: int | None = None
+    can_interface: str | None = None
+    can_channel: str | None = None
+
+    @property
+    def given(self) -> dict[str, Any]:
+        return {k: v for k, v in vars(self).items() if v}
+
+
+@dataclass
+class Session:
+    config: Config
+    embedded: bool
+    realtime: bool = False
+    attach: dict[str, Any] | None = None
+    overrides: ConnectionOverrides = field(default_factory=ConnectionOverrides)
+    seed: int | None = None
+    out_root: Path = Path("runs")
+    plots: bool = True
+    json_output: bool = False
+    quiet: bool = False
+
+    @property
+    def setup(self) -> str:
+        if self.embedded:
+            return "emulated testbed, " + ("real time" if self.realtime else "lock-step")
+        if self.attach is not None:
+            return f"attached emulator {self.attach.get('dynamixel_port')}"
+        return "hardware " + ", ".join(d.port for d in self.config.dynamixel)
+
+    def say(self, text: str) -> None:
+        if not self.quiet:
+            print(text, file=sys.stderr, flush=True)
+
+    @contextlib.contextmanager
+    def connection(
+        self, experiment: Experiment | None, faults: tuple[FaultEvent, ...] = ()
+    ) -> Iterator[Connection]:
+        """The buses of this setup, for one run (an embedded emulator lives as long as it)."""
+        overrides = self.overrides.given
+        if self.embedded:
+            spec = emulator_spec(
+                self.config,
+                experiment=experiment,
+                faults=faults,
+                clock=EmulatorClock.REALTIME if self.realtime else EmulatorClock.LOCKSTEP,
+                seed=self.seed,
+            )
+            emulator = EmbeddedEmulator(spec)
+            try:
+                try:
+                    endpoints = emulator.start()
+                except EmulatorStartError as exc:
+                    raise SessionError(f"could not start the emulated testbed: {exc}") from exc
+                yield Connection.from_endpoints(endpoints, self.config)
+            finally:
+                emulator.stop()  # also after Ctrl-C during start-up: no child left behind
+        elif self.attach is not None:
+            yield Connection.from_endpoints(self.attach, self.config).with_overrides(**overrides)
+        else:
+            yield Connection.from_config(self.config).with_overrides(**overrides)
+
+    def clock(self) -> LoopClock:
+        period = self.config.loop.period_s
+        if self.embedded and not self.realtime:
+            return LockstepClock(period)
+        return WallClock(period)
+
+    def labelled(self, choice: ControllerChoice) -> ControllerChoice:
+        """The choice with its reading of (25) named when the configuration's is not the lab's
+        default (so that the label and the directory say so)."""
+        composition = self.config.controller.composition
+        if choice.reading is None and composition != "accumulated" and choice.kind.has_lqr:
+            return choice.with_reading(composition)
+        return choice
+
+    def run_one(
+        self,
+        experiment: Experiment,
+        choice: ControllerChoice,
+        *,
+        faults: tuple[FaultEvent, ...] = (),
+        overruns: tuple[tuple[float, float], ...] = (),
+        duration_s: float | None = None,
+        reboot_first: bool = False,
+        out_dir: Path | None = None,
+        print_result: bool = True,
+        stop: StopFlag | None = None,
+    ) -> RunResult:
+        choice = self.labelled(choice)
+        if out_dir is None:
+            out_dir = unique_dir(
+                self.out_root / f"{timestamp()}-{experiment.name}-{choice.dir_name}"
+            )
+        request = RunRequest(
+            experiment=experiment,
+            choice=choice,
+            out_dir=out_dir,
+            duration_s=duration_s,
+            overruns=overruns,
+            reboot_first=reboot_first,
+            on_event=None if self.quiet else self.say,
+            on_progress=self._progress(choice.label),
+        )
+        clock = self.clock()
+        self.say(f"hil run: {experiment.name} with {choice.label} on the {self.setup} -> {out_dir}")
+        with self.connection(experiment, faults) as connection:
+            bus_clock = clock.now if isinstance(clock, LockstepClock) else time.monotonic
+            bus = make_bus(self.config, connection, clock=bus_clock)
+            meta = self._meta(experiment, choice, faults, overruns, clock, connection)
+            meta["bus"] = bus.describe()
+            self.say(f"  buses: {connection.describe()}")
+            result = run_experiment(self.config, request, bus, clock, meta, stop=stop)
+        if self.plots and result.ticks > 1:
+            try:
+                run = load_run(out_dir)
+                plot_run(run, experiment.marks(run))
+            except Exception as exc:  # noqa: BLE001 - a plot must not lose a run
+                self.say(f"  (plot failed: {exc})")
+        if print_result:
+            self._print_result(experiment, choice, result)
+        return result
+
+    def _progress(self, label: str) -> Callable[[float, float], None]:
+        def report(time_s: float, total_s: float) -> None:
+            if not self.quiet and sys.stderr.isatty():
+                print(f"\r  {label}: {time_s:5.1f} / {total_s:.1f} s", end="", file=sys.stderr)
+                if time_s + 1.0 > total_s:
+                    print(file=sys.stderr)
+
+        return report
+
+    def _meta(
+        self,
+        experiment: Experiment,
+        choice: ControllerChoice,
+        faults: tuple[FaultEvent, ...],
+        overruns: tuple[tuple[float, float], ...],
+        clock: LoopClock,
+        connection: Connection,
+    ) -> dict[str, Any]:
+        return {
+            "experiment": experiment.name,
+            "experiment_title": experiment.title,
+            "controller": str(choice.kind),
+            "controller_label": choice.label,
+            "kdist": choice.kdist,
+            "reading": choice.reading,
+            "setup": self.setup,
+            "clock": "lockstep" if clock.deterministic else "wall",
+            "seed": self.seed if self.seed is not None else self.config.emulator.seed,
+            "faults": [vars(f) for f in faults],
+            "overruns": list(overruns),
+            "connection": connection.record(),
+            "config_source": self.config.source,
+            "config": self.config.record(),
+            "started": datetime.now().isoformat(timespec="seconds"),
+            "python": platform.python_version(),
+            "packages": package_versions(),
+        }
+
+    def _print_result(
+        self, experiment: Experiment, choice: ControllerChoice, result: RunResult
+    ) -> None:
+        shown = ", ".join(f"{k} = {_fmt(v)}" for k, v in result.metrics.items())
+        print(f"{experiment.name} / {choice.label}: {result.ending}")
+        if shown:
+            print(f"  {shown}")
+        for event in result.safety_events:
+            print(f"  safety: t = {event.time_s:.3f} s {event.cause} -> {event.action}")
+        print(
+            f"  log: {result.out_dir / 'log.csv'}  "
+            f"({result.ticks} ticks, {result.wall_time_s:.1f} s)"
+        )
+        if self.json_output:
+            record = {
+                "experiment": experiment.name,
+                "controller": choice.label,
+                "termination": result.ending.text,
+                "out_dir": str(result.out_dir),
+                **result.metrics,
+            }
+            print(json.dumps(record, default=str))
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)

@@ -1,0 +1,189 @@
+"""The words of `hil`, as types: controller choices, safety causes and reactions, run endings.
+
+Everything above this module compares these types, never the strings users type; the strings
+appear once, here (and the controller names once, in `controller.ControllerKind`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+from controller import COMPOSITION_READINGS, ControllerKind
+
+__all__ = [
+    "ControllerChoice",
+    "ControllerKind",
+    "EmulatorClock",
+    "NoticeKind",
+    "Reaction",
+    "RunEnding",
+    "SafetyCause",
+    "SafetyEvent",
+    "SafetyNotice",
+    "Termination",
+]
+
+
+class Reaction(enum.StrEnum):
+    """What the supervisor does when a watch fires (configured per cause in `[safety]`)."""
+
+    HOLD = "hold"
+    BACK_OFF = "back_off"
+    TORQUE_OFF = "torque_off"
+
+
+class SafetyCause(enum.StrEnum):
+    """Why the supervisor fired; `[safety] on_<value>` holds each cause's reaction."""
+
+    HARDWARE_ERROR = "hardware_error"
+    TORQUE_LOST = "torque_lost"
+    BUS_ERROR = "bus_error"
+    LINK_STALE = "link_stale"
+    LINK_NOISY = "link_noisy"
+    DEFLECTION = "deflection"
+    CURRENT = "current"
+    COMMAND_INVALID = "command_invalid"
+    OVERRUN = "overrun"
+
+    @property
+    def config_key(self) -> str:
+        return f"on_{self.value}"
+
+
+class Termination(enum.StrEnum):
+    """How a run ended."""
+
+    COMPLETED = "completed"
+    SAFETY_STOP = "safety stop"  # ran its course, but a watch latched a safe state
+    INTERRUPTED = "interrupted"
+    START_REFUSED = "start refused"
+    BUS_FAILURE = "bus failure"
+    ERROR = "error"
+
+    @property
+    def ran_its_course(self) -> bool:
+        """The experiment's timeline ran to its end (a safety stop is a result, not a failure
+        of the run)."""
+        return self in (Termination.COMPLETED, Termination.SAFETY_STOP)
+
+
+@dataclass(frozen=True)
+class RunEnding:
+    """A termination and what it was about, e.g. safety stop: hardware_error (torque_off)."""
+
+    termination: Termination
+    detail: str = ""
+
+    @property
+    def text(self) -> str:
+        return f"{self.termination}: {self.detail}" if self.detail else str(self.termination)
+
+    @property
+    def ok(self) -> bool:
+        return self.termination is Termination.COMPLETED
+
+    def __str__(self) -> str:
+        return self.text
+
+
+class EmulatorClock(enum.StrEnum):
+    """How the emulated plant keeps time."""
+
+    LOCKSTEP = "lockstep"  # one loop period per CAN SYNC: deterministic, faster than real time
+    REALTIME = "realtime"  # the wall clock, with wire time: like the hardware
+
+
+@dataclass(frozen=True)
+class ControllerChoice:
+    """A controller to run: which one, its DOB gain, and (optionally) its reading of (25).
+
+    kdist counts only for the DOB controller (it is 0 for the others); reading None means the
+    configuration's `[controller] composition`.
+    """
+
+    kind: ControllerKind
+    kdist: float = 0.0
+    reading: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "kind", ControllerKind(self.kind))
+        if not self.kind.has_dob:
+            object.__setattr__(self, "kdist", 0.0)
+        if not (math.isfinite(self.kdist) and self.kdist >= 0):
+            raise ValueError(f"kdist must be finite and >= 0, got {self.kdist}")
+        if self.reading is not None and self.reading not in COMPOSITION_READINGS:
+            raise ValueError(f"reading must be one of {COMPOSITION_READINGS}, got {self.reading!r}")
+
+    @property
+    def label(self) -> str:
+        """'gc+lqr+dob (Kdist 1)', with ', literal (25)' when a reading is named."""
+        label = f"{self.kind} (Kdist {self.kdist:g})" if self.kind.has_dob else str(self.kind)
+        return f"{label}, {self.reading} (25)" if self.reading else label
+
+    @property
+    def dir_name(self) -> str:
+        """'gc-lqr-dob-k1-literal': a directory name for a run of this controller."""
+        name = self.kind.value.replace("+", "-")
+        if self.kind.has_dob:
+            name += f"-k{self.kdist:g}"
+        return f"{name}-{self.reading}" if self.reading else name
+
+    def with_reading(self, reading: str | None) -> ControllerChoice:
+        return ControllerChoice(self.kind, self.kdist, reading)
+
+
+@dataclass(frozen=True)
+class SafetyEvent:
+    """A watch fired: `action` is the reaction configured for the cause, `state` the
+    supervisor's state after it (a milder cause after a severe one leaves the severe state)."""
+
+    tick: int
+    time_s: float
+    cause: SafetyCause
+    joint: str | None
+    action: Reaction
+    message: str
+    state: str = ""
+
+    def record(self) -> dict[str, object]:
+        return {
+            "tick": self.tick,
+            "time_s": self.time_s,
+            "cause": str(self.cause),
+            "joint": self.joint,
+            "action": str(self.action),
+            "message": self.message,
+            "state": self.state,
+        }
+
+
+class NoticeKind(enum.StrEnum):
+    """Things worth a line in the log that do not change the supervisor's state."""
+
+    BUS_GLITCH = "bus_glitch"
+    BUS_RECOVERED = "bus_recovered"
+    LINK_GLITCH = "link_glitch"
+    LINK_RECOVERED = "link_recovered"
+    GOAL_LIMITED = "goal_limited"
+
+
+@dataclass(frozen=True)
+class SafetyNotice:
+    """A tolerated bus or encoder glitch, a goal clipped at a position limit."""
+
+    tick: int
+    time_s: float
+    kind: NoticeKind
+    joint: str | None
+    message: str
+
+    def record(self) -> dict[str, object]:
+        return {
+            "tick": self.tick,
+            "time_s": self.time_s,
+            "kind": str(self.kind),
+            "joint": self.joint,
+            "message": self.message,
+        }

@@ -1,0 +1,140 @@
+"""From the configuration file to the drivers: the JointBus a run talks to.
+
+The same function builds the bus for the real robot and for an emulated one; only the ports
+differ (`Connection`). Device checks (ID ranges, baud rates, current limits, position ranges)
+are the drivers' own: `check_devices` builds every driver configuration without opening a port,
+so a bad value is refused before anything is sent, in every mode.
+
+In lock-step emulation the timeouts are widened: the emulator answers every request, but a
+loaded machine may delay it by tens of milliseconds, and a timeout that fired on such a delay
+would make the run depend on the machine's load.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+from drivers.canbus import RLC2IC_MR075_COUNTS_PER_REV, ForceSensorConfig, LinkEncoderConfig
+from drivers.dynamixel import DynamixelChainConfig, DynamixelJointConfig, model_number
+from drivers.dynamixel_can_bus import CanChannelConfig, DynamixelCanBus, DynamixelCanBusConfig
+from hil.config import Config, ConfigError, JointSection
+from hil.wiring.connection import Connection
+
+LOCKSTEP_LATENCY_TIMER_MS = 50.0
+LOCKSTEP_LINK_TIMEOUT_S = 0.2
+# An emulator on a shared 2-core machine answers a fresh request 3-7 ms late now and then (a
+# process scheduling artefact, not a property of the bus): with the hardware's 1 ms latency
+# setting (~4 ms reply timeout) such replies would count as lost. Real-time emulation keeps the
+# wire timing and widens only this allowance.
+EMULATED_LATENCY_TIMER_MS = 10.0
+
+
+def encoder_counts_per_rev(joint: JointSection) -> int:
+    """The joint's link-encoder resolution: configured, or the driver's RLC2IC + MR075 figure."""
+    return joint.encoder_counts_per_rev or RLC2IC_MR075_COUNTS_PER_REV
+
+
+def _latency_timer_ms(configured: float, connection: Connection) -> float:
+    if connection.lockstep:
+        return LOCKSTEP_LATENCY_TIMER_MS
+    if connection.emulated:
+        return EMULATED_LATENCY_TIMER_MS
+    return configured
+
+
+def _chain_config(config: Config, chain: str, connection: Connection) -> DynamixelChainConfig:
+    section = next(d for d in config.dynamixel if d.name == chain)
+    endpoint = connection.dynamixel[chain]
+    joints = tuple(
+        DynamixelJointConfig(
+            dxl_id=j.dynamixel_id,
+            direction=j.motor_direction,
+            offset_rad=j.motor_offset_rad,
+            min_position_rad=j.min_angle_rad,
+            max_position_rad=j.max_angle_rad,
+            torque_limit_a=j.torque_limit_a,
+            name=j.name,
+        )
+        for j in config.joints
+        if config.chain_of(j) == chain
+    )
+    return DynamixelChainConfig(
+        port=endpoint.port,
+        baudrate=endpoint.baudrate,
+        joints=joints,
+        model_number=model_number(section.model),
+        return_delay_time_us=section.return_delay_time_us,
+        latency_timer_ms=_latency_timer_ms(section.latency_timer_ms, connection),
+    )
+
+
+def _channel_config(config: Config, channel: str, connection: Connection) -> CanChannelConfig:
+    stale_after_s = config.safety.link_stale_ticks * config.loop.period_s
+    encoders = tuple(
+        LinkEncoderConfig(
+            node_id=j.encoder_node_id,
+            counts_per_rev=encoder_counts_per_rev(j),
+            offset_rad=j.encoder_offset_rad,
+            direction=j.encoder_direction,
+            stale_after_s=stale_after_s,
+            name=j.name,
+        )
+        for j in config.joints
+        if config.channel_of(j) == channel
+    )
+    sensor = config.force_sensor
+    force = None
+    if sensor.node_id and config.force_sensor_channel == channel:
+        force = ForceSensorConfig(
+            node_id=sensor.node_id,
+            direction=sensor.direction,
+            offset_n=sensor.offset_n,
+            stale_after_s=stale_after_s,
+        )
+    return CanChannelConfig(channel, dict(connection.can[channel]), encoders, force)
+
+
+def bus_config(config: Config, connection: Connection) -> DynamixelCanBusConfig:
+    """The drivers' configuration of the whole bus; ValueError from a driver names the device."""
+    return DynamixelCanBusConfig(
+        joint_names=config.joint_names,
+        chains=tuple(_chain_config(config, d.name, connection) for d in config.dynamixel),
+        can_channels=tuple(_channel_config(config, c.name, connection) for c in config.can),
+        link_timeout_s=(
+            LOCKSTEP_LINK_TIMEOUT_S
+            if connection.lockstep
+            else config.loop.bus_read_timeout_ms / 1000.0
+        ),
+    )
+
+
+def check_devices(config: Config) -> None:
+    """Every device figure the drivers check, checked now (no port is opened): ConfigError."""
+    try:
+        bus_config(config, Connection.from_config(config, require_ports=False))
+    except ValueError as exc:
+        raise ConfigError(f"{config.source}: {exc}") from exc
+
+
+def make_bus(
+    config: Config, connection: Connection, clock: Callable[[], float] | None = None
+) -> DynamixelCanBus:
+    try:
+        bus_cfg = bus_config(config, connection)
+    except ValueError as exc:
+        raise ConfigError(f"{config.source}: {exc}") from exc
+    return DynamixelCanBus(bus_cfg, clock=clock or time.monotonic)
+
+
+def configured_current_limits_a(config: Config) -> list[float]:
+    """The current caps the configuration sets (A); NaN where it leaves the device's own, which
+    the bus then reports at open (`JointBus.current_limits_a`)."""
+    return [j.torque_limit_a if j.torque_limit_a is not None else math.nan for j in config.joints]
+
+
+def describe_connection(connection: Connection) -> dict[str, Any]:
+    """The ports a run drives, after every override: for meta.json and the banner."""
+    return connection.record()
