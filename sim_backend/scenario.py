@@ -100,3 +100,72 @@ def parse_fault(text: str, joint: int = 0) -> FaultEvent:
             f"bad fault {text!r}: expected KIND[@START[+DURATION]] with times in seconds"
         ) from None
     return FaultEvent(kind=kind.strip(), start_s=start_s, duration_s=duration_s, joint=joint)
+
+
+@dataclass
+class ActiveFaults:
+    """The faults in force at one instant, by joint index (see `FaultSchedule.at`)."""
+
+    silent: set[int]
+    dropped: set[int]  # every reply of these joints' actuators is lost
+    corrupted: set[int]  # every reply arrives with a bad CRC
+    drop_next: list[int]  # one-shot: the next reply of each listed joint is lost
+    corrupt_next: list[int]  # one-shot: the next reply arrives corrupted
+    encoder_mode: list[str]  # per joint: "ok", "dead", "stale" or "noisy"
+    encoder_noise_counts_rms: list[float]
+
+
+class FaultSchedule:
+    """Which injected faults are in force when, for `n_joints` joints; one-shot faults fire once.
+
+    `fired[i]` counts how often fault i of the scenario took effect (a window counts once when
+    it opens, a one-shot when it is armed), so a test can check that what it injected happened.
+    """
+
+    def __init__(self, faults: tuple[FaultEvent, ...], n_joints: int) -> None:
+        for fault in faults:
+            if not 0 <= fault.joint < n_joints:
+                raise ValueError(
+                    f"fault {fault.kind}: joint index {fault.joint} out of range 0..{n_joints - 1}"
+                )
+        self.faults = faults
+        self.n_joints = n_joints
+        self.fired = [0] * len(faults)
+        self._active = [False] * len(faults)
+
+    def at(self, now_s: float | None) -> ActiveFaults:
+        n = self.n_joints
+        active = ActiveFaults(set(), set(), set(), [], [], ["ok"] * n, [0.0] * n)
+        for number, event in enumerate(self.faults):
+            on = now_s is not None and event.start_s <= now_s < event.end_s
+            if on and not self._active[number]:
+                self.fired[number] += 1
+            was_on, self._active[number] = self._active[number], on
+            if not on:
+                continue
+            if event.kind in ONE_SHOT_FAULTS and event.duration_s is None:
+                if not was_on:  # armed once, when its time comes
+                    target = (
+                        active.drop_next if event.kind == "dropped_reply" else active.corrupt_next
+                    )
+                    target.append(event.joint)
+                continue
+            _activate(event, active)
+        return active
+
+
+def _activate(event: FaultEvent, active: ActiveFaults) -> None:
+    joint = event.joint
+    if event.kind == "silent_id":
+        active.silent.add(joint)
+    elif event.kind == "dropped_reply":
+        active.dropped.add(joint)
+    elif event.kind == "corrupt_crc":
+        active.corrupted.add(joint)
+    elif event.kind == "dead_encoder":
+        active.encoder_mode[joint] = "dead"
+    elif event.kind == "stale_encoder":
+        active.encoder_mode[joint] = "stale"
+    elif event.kind == "noisy_encoder":
+        active.encoder_mode[joint] = "noisy"
+        active.encoder_noise_counts_rms[joint] = event.noise_counts_rms

@@ -29,7 +29,6 @@ import select
 import signal
 import sys
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
@@ -44,7 +43,7 @@ from sim_backend.dynamixel import (
     H54Device,
 )
 from sim_backend.plant import ObstacleParams, TestbedPlantParams
-from sim_backend.scenario import ONE_SHOT_FAULTS, FaultEvent, Scenario
+from sim_backend.scenario import FaultSchedule, Scenario
 from sim_backend.servo import H54ServoParams
 from sim_backend.testbed import EmulatedJoint, Mounting, VirtualTestbed
 
@@ -100,16 +99,20 @@ def _baud_index(baudrate: int) -> int:
     return next(index for index, bps in BAUD_RATE_BPS.items() if bps == baudrate)
 
 
-class Emulator:
-    """The virtual testbed on its buses. `run()` serves until `stop()` or a signal."""
+@dataclass
+class EmulatedRobot:
+    """The emulated devices and physics of a spec, before any bus is attached to them."""
 
-    def __init__(self, spec: EmulatorSpec) -> None:
-        self.spec = spec
-        self.realtime = spec.clock == "realtime"
+    devices: list[H54Device]
+    joints: list[EmulatedJoint]
+    testbed: VirtualTestbed
+    plant_params: TestbedPlantParams
+
+    @classmethod
+    def build(cls, spec: EmulatorSpec) -> EmulatedRobot:
         plant_params = _with_obstacle(spec.plant, spec.scenario.obstacle_contact_angle_rad)
-        self.devices: list[H54Device] = []
-        self.joints: list[EmulatedJoint] = []
-        nodes: list[Any] = []
+        devices: list[H54Device] = []
+        joints: list[EmulatedJoint] = []
         for index, joint_spec in enumerate(spec.joints):
             device = H54Device(
                 joint_spec.dxl_id,
@@ -125,13 +128,33 @@ class Emulator:
             )
             joint.pushes = [p for p in spec.scenario.pushes if p.joint == index]
             device.add_reboot_listener(joint.on_reboot)
-            self.devices.append(device)
-            self.joints.append(joint)
+            devices.append(device)
+            joints.append(joint)
+        return cls(devices, joints, VirtualTestbed(joints), plant_params)
+
+    def contact_force_n(self) -> float:
+        return sum(j.plant.contact_force_n() for j in self.joints)
+
+
+class Emulator:
+    """The virtual testbed on its buses. `run()` serves until `stop()` or a signal."""
+
+    def __init__(self, spec: EmulatorSpec) -> None:
+        self.spec = spec
+        self.realtime = spec.clock == "realtime"
+        robot = EmulatedRobot.build(spec)
+        self.robot = robot
+        self.devices = robot.devices
+        self.joints = robot.joints
+        nodes: list[Any] = []
+        for index, joint_spec in enumerate(spec.joints):
             nodes.append(
                 LinkEncoderNode(
                     joint_spec.encoder_node_id,
                     _link_angle_source(
-                        joint, joint_spec.encoder_direction, joint_spec.encoder_offset_rad
+                        robot.joints[index],
+                        joint_spec.encoder_direction,
+                        joint_spec.encoder_offset_rad,
                     ),
                     counts_per_rev=joint_spec.encoder_counts_per_rev,
                     direction=joint_spec.encoder_direction,
@@ -144,18 +167,18 @@ class Emulator:
         if spec.force_sensor_node_id:
             self.force_sensor = ForceSensorNode(
                 spec.force_sensor_node_id,
-                lambda: sum(j.plant.contact_force_n() for j in self.joints),
+                robot.contact_force_n,
                 heartbeat_ms=spec.heartbeat_ms,
                 seed=spec.seed * 7919 + 999,
             )
             nodes.append(self.force_sensor)
-        self.testbed = VirtualTestbed(self.joints)
+        self.testbed = robot.testbed
         self.chain = DynamixelChain(self.devices, enforce_baud=True)
         self.line = DynamixelLine(self.chain, realtime=self.realtime)
         self.segment = CanSegment(nodes, bitrate=spec.can_bitrate)
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
         self.sync_count = 0
-        self._fired: set[int] = set()
+        self.fault_schedule = FaultSchedule(spec.scenario.faults, len(spec.joints))
         self._running = False
         self._wall_origin = time.monotonic()
 
@@ -251,33 +274,21 @@ class Emulator:
 
     # --- faults ----------------------------------------------------------------------------
     def _apply_faults(self) -> None:
-        now = self.testbed.scenario_time_s
+        active = self.fault_schedule.at(self.testbed.scenario_time_s)
         faults = self.chain.faults
-        silent: set[int] = set()
-        dropped: set[int] = set()
-        corrupted: set[int] = set()
-        encoder_modes = ["ok"] * len(self.encoders)
-        encoder_noise = [0.0] * len(self.encoders)
-        for number, event in enumerate(self.spec.scenario.faults):
-            if now is None or not event.start_s <= now < event.end_s:
-                continue
-            dxl_id = self.spec.joints[event.joint].dxl_id
-            if event.kind in ONE_SHOT_FAULTS and event.duration_s is None:
-                if number not in self._fired:
-                    self._fired.add(number)
-                    if event.kind == "dropped_reply":
-                        faults.drop_next_replies += 1
-                    else:
-                        faults.corrupt_next_replies += 1
-                continue
-            _activate(event, dxl_id, silent, dropped, corrupted, encoder_modes, encoder_noise)
-        faults.silent_ids.clear()
-        faults.silent_ids.update(silent)
-        faults.drop_reply_ids.clear()
-        faults.drop_reply_ids.update(dropped)
-        faults.corrupt_crc_ids.clear()
-        faults.corrupt_crc_ids.update(corrupted)
-        for node, mode, noise in zip(self.encoders, encoder_modes, encoder_noise, strict=True):
+        ids = [joint.dxl_id for joint in self.spec.joints]
+        faults.drop_next_replies += len(active.drop_next)
+        faults.corrupt_next_replies += len(active.corrupt_next)
+        for target, joints in (
+            (faults.silent_ids, active.silent),
+            (faults.drop_reply_ids, active.dropped),
+            (faults.corrupt_crc_ids, active.corrupted),
+        ):
+            target.clear()
+            target.update(ids[j] for j in joints)
+        for node, mode, noise in zip(
+            self.encoders, active.encoder_mode, active.encoder_noise_counts_rms, strict=True
+        ):
             if node.fault.mode != mode or node.fault.noise_counts_rms != noise:
                 node.fault.mode = mode
                 node.fault.noise_counts_rms = noise
@@ -285,30 +296,6 @@ class Emulator:
     def close(self) -> None:
         self.line.close()
         self.slcan.close()
-
-
-def _activate(
-    event: FaultEvent,
-    dxl_id: int,
-    silent: set[int],
-    dropped: set[int],
-    corrupted: set[int],
-    encoder_modes: list[str],
-    encoder_noise: list[float],
-) -> None:
-    if event.kind == "silent_id":
-        silent.add(dxl_id)
-    elif event.kind == "dropped_reply":
-        dropped.add(dxl_id)
-    elif event.kind == "corrupt_crc":
-        corrupted.add(dxl_id)
-    elif event.kind == "dead_encoder":
-        encoder_modes[event.joint] = "dead"
-    elif event.kind == "stale_encoder":
-        encoder_modes[event.joint] = "stale"
-    elif event.kind == "noisy_encoder":
-        encoder_modes[event.joint] = "noisy"
-        encoder_noise[event.joint] = event.noise_counts_rms
 
 
 def _link_angle_source(joint: EmulatedJoint, direction: int, offset_rad: float):  # noqa: ANN202
@@ -345,12 +332,3 @@ def serve(spec: EmulatorSpec, out: TextIO = sys.stdout, extra: dict | None = Non
         emulator.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-
-
-def joint_specs_from_ids(
-    ids: Sequence[int], first_node_id: int = 5
-) -> tuple[EmulatedJointSpec, ...]:
-    """Joints with consecutive encoder node IDs (for benches that only care about the chain)."""
-    return tuple(
-        EmulatedJointSpec(dxl_id=i, encoder_node_id=first_node_id + n) for n, i in enumerate(ids)
-    )

@@ -13,6 +13,7 @@ PACKAGES = (
     "python-can",
     "canopen",
     "pin",
+    "pydantic",
 )
 
 

@@ -246,6 +246,11 @@ class H54Device:
                     self._indirect_map = None
         return error
 
+    def write_item(self, name: str, value: int) -> int:
+        """WRITE of one item by name, under every rule a WRITE packet meets; the error number."""
+        item = self._layout[name]
+        return self.write(item.address, item.encode(value))
+
     def reg_write(self, address: int, data: bytes) -> int:
         """REG_WRITE: check now, register for ACTION, Registered Instruction := 1."""
         error, _ = self._plan_write(address, data)

@@ -1,29 +1,40 @@
 """The supervisor's rules, tick by tick, on hand-made samples (no bus): each watch fires on the
 documented tick and not before, each safe state commands what docs/safety.md says; and the slow
-re-homing plan (hil/recovery.py) against its analytic figures."""
+re-homing plan (hil/loop/homing.py) against its analytic figures."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from drivers.joint_bus import HardwareError, JointSample
-from hil.config import load_config
-from hil.recovery import plan_homing
-from hil.supervisor import SafeState, Supervisor, WatchTuning
+from drivers.dynamixel import HardwareError, actuator_fault
+from drivers.joint_bus import BusFault, DeviceRole, JointDevices, JointSample
+from hil.config import ConfigError, load_config
+from hil.loop import plan_homing
+from hil.safety import SafeState, Supervisor
 
 CONFIG = load_config()
+DEVICES = (JointDevices("actuator 1", "link encoder node 5"),)
 PERIOD_S = CONFIG.loop.period_s
 LIMIT_A = 10.0
 COUNT_RAD = 2 * math.pi / 983_040  # one link-encoder count
 
 
 def _supervisor(**safety: object) -> Supervisor:
-    config = dataclasses.replace(CONFIG.safety, **safety)
-    supervisor = Supervisor(config, CONFIG.joints, PERIOD_S, np.array([LIMIT_A]))
+    config = CONFIG.changed("safety", **safety).safety
+    joint = CONFIG.joints[0]
+    supervisor = Supervisor(
+        config,
+        CONFIG.joint_names,
+        DEVICES,
+        np.array([joint.min_angle_rad]),
+        np.array([joint.max_angle_rad]),
+        PERIOD_S,
+        np.array([CONFIG.model.stiffness_nm_per_rad]),
+    )
+    supervisor.set_current_limits(np.array([LIMIT_A]))
     supervisor.torque_enabled(np.array([0.0]))
     return supervisor
 
@@ -45,12 +56,15 @@ def _sample(
         link_angle_rad=np.array([link if link_valid else np.nan]),
         motor_velocity_rad_s=np.zeros(1),
         motor_current_a=np.array([current if motor_valid else np.nan]),
-        hardware_error=np.array([hardware_error], dtype=np.uint8),
+        actuator_fault=np.array([actuator_fault(hardware_error)], dtype=np.uint8),
+        fault_code=np.array([hardware_error]),
         torque_enabled=np.array([torque and motor_valid]),
         motor_valid=np.array([motor_valid]),
         link_valid=np.array([link_valid]),
         link_age_s=np.zeros(1),
-        bus_errors=[] if motor_valid else ["ID 1 (testbed): no valid sync-read reply (timeout)"],
+        bus_errors=[]
+        if motor_valid
+        else [BusFault(0, DeviceRole.ACTUATOR, "actuator 1", "no valid sync-read reply (timeout)")],
     )
 
 
@@ -86,8 +100,8 @@ def test_a_non_finite_goal_is_never_sent_the_joint_holds() -> None:
 
 def test_a_reference_beyond_the_limits_is_refused_before_anything_moves() -> None:
     with pytest.raises(ValueError, match="beyond joint 'testbed'"):
-        _supervisor().check_reference(-0.9, 0.0)
-    _supervisor().check_reference(-0.8, 0.8)
+        _supervisor().check_reference(np.array([-0.9]), np.array([0.0]))
+    _supervisor().check_reference(np.array([-0.8]), np.array([0.8]))
 
 
 # --- the actuator's own protection --------------------------------------------------------
@@ -107,7 +121,7 @@ def test_a_hardware_error_trips_on_its_tick_decoded_and_stops_commanding() -> No
         "testbed",
         "torque_off",
     )
-    assert "0x24 (OVERHEATING|OVERLOAD)" in event.message
+    assert "OVERLOAD|OVERHEATING (device code 0x24)" in event.message
     _tick(supervisor, 11, _sample(hardware_error=bits, torque=False))
     assert len(supervisor.events) == 1  # reported once
     _tick(supervisor, 12, _sample(hardware_error=bits | HardwareError.INPUT_VOLTAGE, torque=False))
@@ -200,7 +214,7 @@ def test_the_noise_watch_fires_on_noise_and_not_on_motion() -> None:
     # the emulator's noisy_encoder: 50 counts rms on the same motion - found within 20 ticks
     noisy = quantise(slow + rng.normal(0, 50 * COUNT_RAD, t.size))
     tick = _second_difference_noise_trip(noisy)
-    assert tick is not None and tick <= WatchTuning().link_noise_window_ticks
+    assert tick is not None and tick <= CONFIG.safety.link_noise_window_ticks
 
 
 def test_the_noise_watch_uses_the_sampling_instants_not_the_nominal_grid() -> None:
@@ -308,7 +322,7 @@ def test_back_off_moves_the_goal_away_from_the_push_and_escalation_never_reverts
 
 
 def test_an_unknown_reaction_is_refused() -> None:
-    with pytest.raises(ValueError, match="unknown safety reaction 'panic'"):
+    with pytest.raises(ConfigError, match="on_overrun: Input should be 'hold', 'back_off' or"):
         _supervisor(on_overrun="panic")
 
 

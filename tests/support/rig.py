@@ -1,9 +1,12 @@
-"""The safety suite's rig (helpers only; the tests are in the other tests/test_safety_*.py).
+"""The runs' rig: running the loop of `hil run` on a bus, and reading what a run left behind.
 
-Everything runs the real path: `hil emulate` in its own process (hil.emulation.EmbeddedEmulator,
-the command a user runs), our drivers on the wire, the loop of `hil run` (hil.runner), and a
-direct look at the emulated actuator with ROBOTIS's unmodified dynamixel-sdk afterwards (the
-emulator keeps running, so what the device holds can be read back over the bus).
+Two ways to run, one loop (hil.loop.run_experiment):
+- `run_in_process`: on the in-process joint bus (hil.wiring.in_process): the same plant,
+  firmware and faults as the emulator, in milliseconds - for loop, supervisor and session tests;
+- `emulated_testbed` + `run_on`: `hil emulate` in its own process (the command a user runs), our
+  drivers on the wire, and a direct look at the emulated actuator with ROBOTIS's unmodified
+  dynamixel-sdk afterwards (`read_device`: the emulator keeps running) - for the end-to-end path.
+A run directory is read back with the product's own loader (hil.output.load_run).
 """
 
 from __future__ import annotations
@@ -22,13 +25,15 @@ import numpy as np
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
 from hil.cli import main
-from hil.clock import LockstepClock
 from hil.config import Config, load_config
-from hil.emulation import EmbeddedEmulator, emulator_spec
 from hil.experiments import Experiment, get_experiment
-from hil.hardware import Connection, make_bus
-from hil.runlog import read_log
-from hil.runner import RunRequest, RunResult, run_experiment
+from hil.loop import LockstepClock, RunRequest, run_experiment
+from hil.output import RunData, RunResult
+from hil.output import load_run as load_run_data
+from hil.vocabulary import ControllerChoice
+from hil.wiring import Connection, make_bus
+from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
+from hil.wiring.in_process import InProcessJointBus, in_process_bus
 from sim_backend.scenario import FaultEvent
 
 PERIOD_S = 0.005
@@ -45,13 +50,26 @@ FACTORY_MAX_POSITION = 250_961
 
 @dataclass
 class Run:
-    """One run directory as a user finds it (see hil/runlog.py)."""
+    """One run directory as a user finds it, read with the product's loader."""
 
-    dir: Path
-    summary: dict[str, Any]
-    events: list[dict[str, Any]]
-    columns: dict[str, np.ndarray]
+    data: RunData
     exit_code: int | None = None
+
+    @property
+    def dir(self) -> Path:
+        return self.data.out_dir
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        return self.data.summary
+
+    @property
+    def events(self) -> list[dict[str, Any]]:
+        return list(self.data.events)
+
+    @property
+    def columns(self) -> dict[str, np.ndarray]:
+        return self.data.columns
 
     @property
     def termination(self) -> str:
@@ -72,9 +90,7 @@ class Run:
 
 
 def load_run(out_dir: Path, exit_code: int | None = None) -> Run:
-    summary = json.loads((out_dir / "summary.json").read_text())
-    events = [json.loads(line) for line in (out_dir / "events.jsonl").read_text().splitlines()]
-    return Run(out_dir, summary, events, read_log(out_dir / "log.csv"), exit_code)
+    return Run(load_run_data(out_dir), exit_code)
 
 
 def assert_log_complete(run: Run) -> None:
@@ -105,7 +121,36 @@ def hil_run(out_root: Path, *args: str) -> Run:
 def config_with(config: Config | None = None, **safety: Any) -> Config:
     """The built-in testbed configuration with [safety] keys replaced."""
     config = config or load_config()
-    return config.with_overrides(safety=dataclasses.replace(config.safety, **safety))
+    return config.changed("safety", **safety)
+
+
+def choice(controller: str, kdist: float = 1.0) -> ControllerChoice:
+    return ControllerChoice(controller, kdist)
+
+
+def run_in_process(
+    config: Config,
+    experiment: Experiment | str,
+    controller: str,
+    out_dir: Path,
+    *,
+    duration_s: float | None = None,
+    kdist: float = 1.0,
+    faults: tuple[FaultEvent, ...] = (),
+    seed: int | None = None,
+    bus: InProcessJointBus | None = None,
+    **request: Any,
+) -> tuple[RunResult, Run]:
+    """The loop of `hil run` (lock-step) on the in-process joint bus with the experiment's world."""
+    if isinstance(experiment, str):
+        experiment = get_experiment(experiment)
+    bus = bus or in_process_bus(config, experiment, faults, seed=seed)
+    run_request = RunRequest(
+        experiment, choice(controller, kdist), out_dir, duration_s=duration_s, **request
+    )
+    clock = LockstepClock(config.loop.period_s)
+    result = run_experiment(config, run_request, bus, clock, {"test": True})
+    return result, load_run(out_dir)
 
 
 @contextlib.contextmanager
@@ -134,9 +179,10 @@ def run_on(
     if isinstance(experiment, str):
         experiment = get_experiment(experiment)
     clock = LockstepClock(config.loop.period_s)
-    bus = make_bus(config, Connection.from_endpoints(emulator.endpoints), clock=clock.now)
+    connection = Connection.from_endpoints(emulator.endpoints, config)
+    bus = make_bus(config, connection, clock=clock.now)
     run_request = RunRequest(
-        experiment, controller, kdist, out_dir, duration_s=duration_s, progress=False, **request
+        experiment, choice(controller, kdist), out_dir, duration_s=duration_s, **request
     )
     result = run_experiment(config, run_request, bus, clock, {"test": True})
     return result, load_run(out_dir)
@@ -145,7 +191,7 @@ def run_on(
 @dataclass(frozen=True)
 class DeviceState:
     torque_enabled: int
-    hardware_error: int
+    hardware_error: int  # the device's Hardware Error Status bits
     return_delay_time: int
     max_position_limit: int
     goal_position: int

@@ -16,7 +16,8 @@ from drivers.dynamixel import (
     DynamixelChainConfig,
     DynamixelJointConfig,
 )
-from drivers.joint_bus import BusError, HardwareError
+from drivers.dynamixel import HardwareError
+from drivers.joint_bus import BusError
 from sim_backend.dynamixel.testing import spawn_emulated_chain
 
 pytestmark = pytest.mark.timeout(60)

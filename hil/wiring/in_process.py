@@ -1,0 +1,157 @@
+"""A JointBus on the emulated robot in this process: no pseudo-terminals, no child process.
+
+python-can's `virtual` interface is the model: a full backend, chosen like the others, for
+tests that need the loop, the supervisor, the start gate or the session to run in
+milliseconds. Behind it is `sim_backend.direct.DirectTestbed` - the same devices, firmware,
+plant, scenario and faults as `hil emulate`, read and commanded in SI. It steps the plant one
+period per `read()` (lock-step), so a run on it is deterministic. `hil run` never uses it: the
+emulated buses stay the default and the end-to-end path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from drivers.dynamixel import actuator_fault
+from drivers.joint_bus import (
+    ActuatorFault,
+    BusError,
+    BusFault,
+    DeviceRole,
+    JointBus,
+    JointDevices,
+    JointSample,
+)
+from hil.config import Config
+from hil.experiments import Experiment
+from hil.wiring.emulation import emulator_spec
+from sim_backend.direct import DirectTestbed
+from sim_backend.scenario import FaultEvent
+from sim_backend.server import EmulatorSpec
+
+
+class InProcessJointBus(JointBus):
+    """See the module docstring. Build with `in_process_bus(config, experiment, faults)`."""
+
+    def __init__(self, config: Config, spec: EmulatorSpec) -> None:
+        self.config = config
+        self.spec = spec
+        self.joint_names = config.joint_names
+        self.testbed: DirectTestbed | None = None
+        self._min = np.array([j.min_angle_rad for j in config.joints])
+        self._max = np.array([j.max_angle_rad for j in config.joints])
+        self.reads = 0
+        self.closed = False
+
+    def _require(self) -> DirectTestbed:
+        if self.testbed is None or self.closed:
+            raise BusError("the in-process bus is not open")
+        return self.testbed
+
+    # --- lifecycle -------------------------------------------------------------------------
+    def open(self) -> None:
+        self.testbed = DirectTestbed(self.spec)
+        for i, joint in enumerate(self.config.joints):
+            if joint.torque_limit_a is not None and not self.testbed.set_current_limit_a(
+                i, joint.torque_limit_a
+            ):
+                raise BusError(f"actuator {joint.dynamixel_id}: Torque Limit refused")
+
+    def close(self) -> None:
+        self.closed = True
+
+    # --- the 200 Hz path -------------------------------------------------------------------
+    def read(self) -> JointSample:
+        testbed = self._require()
+        testbed.sync()
+        self.reads += 1
+        reading = testbed.read()
+        sample = JointSample.empty(self.n_joints, timestamp_s=testbed.time_s)
+        sample.motor_angle_rad[:] = reading.motor_angle_rad
+        sample.motor_velocity_rad_s[:] = reading.motor_velocity_rad_s
+        sample.motor_current_a[:] = reading.motor_current_a
+        sample.fault_code[:] = reading.hardware_error
+        sample.torque_enabled[:] = reading.torque_enabled
+        sample.motor_valid[:] = reading.motor_valid
+        sample.link_angle_rad[:] = reading.link_angle_rad
+        sample.link_valid[:] = reading.link_valid
+        sample.link_age_s[:] = np.where(reading.link_valid, 0.0, np.inf)
+        devices = self.devices()
+        for i in range(self.n_joints):
+            if reading.hardware_error[i]:
+                sample.actuator_fault[i] = actuator_fault(int(reading.hardware_error[i]))
+            if not reading.motor_valid[i]:
+                sample.bus_errors.append(
+                    BusFault(i, DeviceRole.ACTUATOR, devices[i].actuator, "no valid reply")
+                )
+            if not reading.link_valid[i]:
+                sample.bus_errors.append(
+                    BusFault(i, DeviceRole.LINK_SENSOR, devices[i].link_sensor, "no answer")
+                )
+        sample.extra["contact_force_n"] = reading.contact_force_n
+        return sample
+
+    def write(self, goal_motor_angle_rad: np.ndarray) -> None:
+        testbed = self._require()
+        goal = np.asarray(goal_motor_angle_rad, dtype=float)
+        bad = ~(np.isfinite(goal) & (goal >= self._min) & (goal <= self._max))
+        if goal.shape != self._min.shape or bad.any():
+            raise ValueError(f"goal position refused, nothing sent: {goal.tolist()}")
+        for i, value in enumerate(goal.tolist()):
+            testbed.write_goal(i, value)
+
+    # --- torque ----------------------------------------------------------------------------
+    def enable(self) -> None:
+        testbed = self._require()
+        for i, joint in enumerate(self.config.joints):
+            if testbed.robot.devices[i].hardware_error_status:
+                raise BusError(f"actuator {joint.dynamixel_id}: reports a hardware error")
+            if not testbed.set_torque(i, True):
+                raise BusError(f"actuator {joint.dynamixel_id}: torque on not taken")
+
+    def disable(self) -> None:
+        testbed = self._require()
+        missed = [
+            j.dynamixel_id
+            for i, j in enumerate(self.config.joints)
+            if not testbed.set_torque(i, False)
+        ]
+        if missed:
+            raise BusError(f"torque off did not reach actuator(s) {missed}")
+
+    def reboot(self, joints: Sequence[int] | None = None) -> dict[str, ActuatorFault]:
+        testbed = self._require()
+        selected = range(self.n_joints) if joints is None else joints
+        result = {}
+        for i in selected:
+            testbed.reboot(i)
+            bits = testbed.robot.devices[i].hardware_error_status
+            result[self.joint_names[i]] = actuator_fault(bits)
+        return result
+
+    # --- what it is ------------------------------------------------------------------------
+    def current_limits_a(self) -> np.ndarray:
+        testbed = self._require()
+        return np.array([testbed.current_limit_a(i) for i in range(self.n_joints)])
+
+    def devices(self) -> tuple[JointDevices, ...]:
+        return tuple(
+            JointDevices(f"actuator {j.dynamixel_id}", f"link encoder node {j.encoder_node_id}")
+            for j in self.config.joints
+        )
+
+    def describe(self) -> dict[str, object]:
+        return {"joints": list(self.joint_names), "in_process": True, "seed": self.spec.seed}
+
+
+def in_process_bus(
+    config: Config,
+    experiment: Experiment | None = None,
+    faults: tuple[FaultEvent, ...] = (),
+    seed: int | None = None,
+) -> InProcessJointBus:
+    """The in-process bus for this configuration and experiment (its world, these faults)."""
+    spec = emulator_spec(config, experiment=experiment, faults=faults, seed=seed)
+    return InProcessJointBus(config, spec)
