@@ -112,7 +112,9 @@ class FootstepPlan:
             object.__setattr__(self, "footsteps", tuple(self.footsteps))
         if len(self.footsteps) == 0:
             raise FootstepPlanError("a plan needs at least one footstep")
-        if not (math.isfinite(self.min_lateral_separation_m) and self.min_lateral_separation_m >= 0):
+        if not (
+            math.isfinite(self.min_lateral_separation_m) and self.min_lateral_separation_m >= 0
+        ):
             raise FootstepPlanError(
                 f"min_lateral_separation_m must be finite and >= 0, got "
                 f"{self.min_lateral_separation_m}"

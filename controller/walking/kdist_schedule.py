@@ -65,7 +65,10 @@ class KdistSchedule:
 
 
 def _cubic(start: float, end: float, s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
+    if s <= 0.0:
+        return start
+    if s >= 1.0:
+        return end
     return start + (end - start) * s * s * (3.0 - 2.0 * s)
 
 

@@ -30,6 +30,11 @@ a(w) = atan2(w_z, w_x) of a vector in the x-z plane (Ry(q) turns a(w) into a(w) 
              q6 = atan2(-v_y, -v_z),  q5 = a(u) - a(w) with u = (v_x, 0, -sqrt(v_y^2 + v_z^2))
     hip      Rz(q1) Rx(q2) Ry(q3) = R_pelvis' R_f Rx(-q6) Ry(-(q4 + q5)) = M:
              q2 = asin(M_21),  q1 = atan2(-M_01, M_11),  q3 = atan2(-M_20, M_22).
+
+Branch: of the exact solutions, this is the one with the knee bent forward, |hip roll| and
+|ankle roll| < 90 deg and the hip above the ankle in the ankle-pitch joint's frame: every walking
+posture. For any reachable pose the returned angles reproduce the pose exactly (the tests check
+both by forward kinematics on an independent pinocchio model).
 """
 
 from __future__ import annotations
@@ -100,10 +105,18 @@ class LegGeometry:
     def dyros_jet(cls, side: Side) -> LegGeometry:
         """DYROS-JET's leg from its URDF figures (`dyros_jet_figures`)."""
         if side is Side.LEFT:
-            return cls(jet.HIP_IN_PELVIS_LEFT_M, jet.KNEE_FROM_HIP_M, jet.ANKLE_FROM_KNEE_M,
-                       jet.AXIS_SIGNS_LEFT)
-        return cls(jet.HIP_IN_PELVIS_RIGHT_M, jet.KNEE_FROM_HIP_M, jet.ANKLE_FROM_KNEE_M,
-                   jet.AXIS_SIGNS_RIGHT)
+            return cls(
+                jet.HIP_IN_PELVIS_LEFT_M,
+                jet.KNEE_FROM_HIP_M,
+                jet.ANKLE_FROM_KNEE_M,
+                jet.AXIS_SIGNS_LEFT,
+            )
+        return cls(
+            jet.HIP_IN_PELVIS_RIGHT_M,
+            jet.KNEE_FROM_HIP_M,
+            jet.ANKLE_FROM_KNEE_M,
+            jet.AXIS_SIGNS_RIGHT,
+        )
 
     @classmethod
     def from_pinocchio(cls, model, joint_names: Sequence[str], tolerance: float = 1e-9):
@@ -121,18 +134,23 @@ class LegGeometry:
             if not model.existJointName(name):
                 raise LegIkError(f"joint {name!r} is not in the model")
             ids.append(model.getJointId(name))
-        for previous, (name, jid) in zip(ids, list(zip(joint_names, ids, strict=True))[1:]):
-            if model.parents[jid] != previous:
+        for index in range(1, 6):
+            if model.parents[ids[index]] != ids[index - 1]:
+                name = joint_names[index]
                 raise LegIkError(f"joint {name!r} is not the child of the previous leg joint")
         placements = [model.jointPlacements[jid] for jid in ids]
         for name, placement in zip(joint_names, placements, strict=True):
             if not np.allclose(placement.rotation, np.eye(3), atol=tolerance):
-                raise LegIkError(f"joint {name!r}: its placement is rotated; the closed form "
-                                 "needs joint frames parallel to the pelvis at the zero pose")
+                raise LegIkError(
+                    f"joint {name!r}: its placement is rotated; the closed form "
+                    "needs joint frames parallel to the pelvis at the zero pose"
+                )
         for index in (1, 2, 5):
             if np.linalg.norm(placements[index].translation) > tolerance:
-                raise LegIkError(f"joint {joint_names[index]!r} is offset from the previous "
-                                 "joint; the closed form needs intersecting hip and ankle axes")
+                raise LegIkError(
+                    f"joint {joint_names[index]!r} is offset from the previous "
+                    "joint; the closed form needs intersecting hip and ankle axes"
+                )
         data = model.createData()
         q = pin.neutral(model)
         pin.computeJointJacobians(model, data, q)
@@ -145,8 +163,11 @@ class LegGeometry:
             ]
             linear, angular = column[:3], column[3:]
             sign = float(np.dot(angular, canonical))
-            if (np.linalg.norm(linear) > tolerance or abs(abs(sign) - 1.0) > tolerance
-                    or np.linalg.norm(angular - sign * np.array(canonical)) > tolerance):
+            if (
+                np.linalg.norm(linear) > tolerance
+                or abs(abs(sign) - 1.0) > tolerance
+                or np.linalg.norm(angular - sign * np.array(canonical)) > tolerance
+            ):
                 raise LegIkError(f"joint {name!r} is not a revolute joint about +-{canonical}")
             signs.append(1 if sign > 0 else -1)
         return cls(
@@ -223,12 +244,21 @@ def leg_inverse_kinematics(
     # Hip: M = R_pelvis' R_foot Rx(-q6) Ry(-(q4 + q5)); only rows/entries needed are formed.
     # G = R_pelvis' R_foot.
     g = [
-        [r00 * f00 + r10 * f10 + r20 * f20, r00 * f01 + r10 * f11 + r20 * f21,
-         r00 * f02 + r10 * f12 + r20 * f22],
-        [r01 * f00 + r11 * f10 + r21 * f20, r01 * f01 + r11 * f11 + r21 * f21,
-         r01 * f02 + r11 * f12 + r21 * f22],
-        [r02 * f00 + r12 * f10 + r22 * f20, r02 * f01 + r12 * f11 + r22 * f21,
-         r02 * f02 + r12 * f12 + r22 * f22],
+        [
+            r00 * f00 + r10 * f10 + r20 * f20,
+            r00 * f01 + r10 * f11 + r20 * f21,
+            r00 * f02 + r10 * f12 + r20 * f22,
+        ],
+        [
+            r01 * f00 + r11 * f10 + r21 * f20,
+            r01 * f01 + r11 * f11 + r21 * f21,
+            r01 * f02 + r11 * f12 + r21 * f22,
+        ],
+        [
+            r02 * f00 + r12 * f10 + r22 * f20,
+            r02 * f01 + r12 * f11 + r22 * f21,
+            r02 * f02 + r12 * f12 + r22 * f22,
+        ],
     ]
     c6, s6 = math.cos(q6), math.sin(q6)
     beta = q4 + q5

@@ -155,8 +155,12 @@ class WalkingPattern:
         self.pelvis_position_m[:, 0] += c * offset[0] - s * offset[1]
         self.pelvis_position_m[:, 1] += s * offset[0] + c * offset[1]
         self.pelvis_position_m[:, 2] += offset[2]
-        for array in (self.com_position_m, self.com_velocity_mps, self.com_acceleration_mps2,
-                      self.pelvis_position_m):
+        for array in (
+            self.com_position_m,
+            self.com_velocity_mps,
+            self.com_acceleration_mps2,
+            self.pelvis_position_m,
+        ):
             _read_only(array)
         self.joint_angles_rad = None if legs is None else _read_only(self._solve_ik(legs))
 
@@ -185,8 +189,12 @@ class WalkingPattern:
                 if side is swinging:
                     target = self.plan.footsteps[seg.footstep_index]
                     swing = SwingFootTrajectory(
-                        (start.x_m, start.y_m), (target.x_m, target.y_m), start.yaw_rad,
-                        target.yaw_rad, self.params.swing_height_m, seg.n_ticks * self.dt_s,
+                        (start.x_m, start.y_m),
+                        (target.x_m, target.y_m),
+                        start.yaw_rad,
+                        target.yaw_rad,
+                        self.params.swing_height_m,
+                        seg.n_ticks * self.dt_s,
                     )
                     t = np.arange(seg.n_ticks) * self.dt_s
                     pose[rows, side.index], vel[rows, side.index], acc[rows, side.index] = (

@@ -9,8 +9,9 @@ of duration T, with s = t / T:
                                 z(t) = h b(2 - 2 s)      for s >= 1/2   (lower, h -> 0)
 
 so position, velocity and acceleration are continuous (the two height quintics meet at the apex
-s = 1/2 with z = h, z' = z'' = 0), the apex height is exactly h at mid-swing, and the foot leaves
-and touches the ground with zero velocity and zero acceleration in all three axes.
+s = 1/2 with z = h, z' = z'' = 0; the height's jerk reverses there), the apex height is exactly
+h at mid-swing, and the foot leaves and touches the ground with zero velocity and zero
+acceleration in all three axes.
 """
 
 from __future__ import annotations

@@ -88,8 +88,7 @@ def duration_ticks(duration_s: float, dt_s: float, name: str) -> int:
     n = round(duration_s / dt_s)
     if n < 1 or abs(n * dt_s - duration_s) > 1e-9 * max(1.0, duration_s):
         raise FootstepPlanError(
-            f"{name} = {duration_s} s is not a whole number (>= 1) of control periods "
-            f"dt = {dt_s} s"
+            f"{name} = {duration_s} s is not a whole number (>= 1) of control periods dt = {dt_s} s"
         )
     return n
 

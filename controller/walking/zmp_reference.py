@@ -70,7 +70,10 @@ def zmp_reference(timeline: WalkTimeline, params: ZmpReferenceParams) -> np.ndar
     feet = {Side.LEFT: plan.initial_left, Side.RIGHT: plan.initial_right}
 
     def midpoint() -> np.ndarray:
-        left, right = foot_zmp_point(feet[Side.LEFT], params), foot_zmp_point(feet[Side.RIGHT], params)
+        left, right = (
+            foot_zmp_point(feet[Side.LEFT], params),
+            foot_zmp_point(feet[Side.RIGHT], params),
+        )
         return 0.5 * (left + right)
 
     reference = np.empty((timeline.n_ticks, 2))

@@ -28,7 +28,12 @@ def test_straight_walk_places_alternating_footsteps_and_closes_the_stance():
     w = 0.127794  # the lab's nominal lateral foot offset
     assert plan.initial_left == Footstep(Side.LEFT, 0.0, w)
     assert plan.initial_right == Footstep(Side.RIGHT, 0.0, -w)
-    expected = [(Side.RIGHT, 0.2, -w), (Side.LEFT, 0.4, w), (Side.RIGHT, 0.6, -w), (Side.LEFT, 0.6, w)]
+    expected = [
+        (Side.RIGHT, 0.2, -w),
+        (Side.LEFT, 0.4, w),
+        (Side.RIGHT, 0.6, -w),
+        (Side.LEFT, 0.6, w),
+    ]
     got = [(s.side, s.x_m, s.y_m) for s in plan.footsteps]
     assert [g[0] for g in got] == [e[0] for e in expected]
     for (_, x, y), (_, ex, ey) in zip(got, expected, strict=True):
@@ -66,8 +71,12 @@ def test_straight_walk_rejects_bad_arguments(kwargs, message):
 @pytest.mark.parametrize("field", ["single_support_s", "double_support_s", "initial_rest_s"])
 @pytest.mark.parametrize("value", [0.0, -1.0, math.inf])
 def test_timing_rejects_non_positive_durations(field, value):
-    values = {"single_support_s": 0.8, "double_support_s": 0.3, "initial_rest_s": 1.6,
-              "final_rest_s": 1.0} | {field: value}
+    values = {
+        "single_support_s": 0.8,
+        "double_support_s": 0.3,
+        "initial_rest_s": 1.6,
+        "final_rest_s": 1.0,
+    } | {field: value}
     with pytest.raises(FootstepPlanError, match=field):
         StepTiming(**values)
 
@@ -98,8 +107,9 @@ def test_timeline_segments_and_touchdown_times():
     timeline = WalkTimeline(plan, DT)
     kinds = [s.kind for s in timeline.segments]
     assert kinds == [SegmentKind.INITIAL_REST] + [
-        SegmentKind.DOUBLE_SUPPORT, SegmentKind.SINGLE_SUPPORT] * 3 + [
-        SegmentKind.DOUBLE_SUPPORT, SegmentKind.FINAL_REST]
+        SegmentKind.DOUBLE_SUPPORT,
+        SegmentKind.SINGLE_SUPPORT,
+    ] * 3 + [SegmentKind.DOUBLE_SUPPORT, SegmentKind.FINAL_REST]
     assert timeline.n_ticks == round(plan.duration_s / DT) == 320 + 3 * (60 + 160) + 60 + 200
     for i in range(3):  # lift-off i = rest + (i+1) DS + i SS; touchdown = lift-off + SS
         assert timeline.liftoff_times_s[i] == pytest.approx(1.6 + (i + 1) * 0.3 + i * 0.8)
@@ -110,8 +120,11 @@ def test_phase_signal_per_tick():
     plan = straight_walk_plan(3, 0.2, DYNAMIC)  # right foot swings first
     timeline = WalkTimeline(plan, DT)
     rest = timeline.phase(0)
-    assert (rest.kind, rest.support, rest.landing_side) == (SegmentKind.INITIAL_REST,
-                                                             Support.DOUBLE, None)
+    assert (rest.kind, rest.support, rest.landing_side) == (
+        SegmentKind.INITIAL_REST,
+        Support.DOUBLE,
+        None,
+    )
     first_ds = timeline.phase(320 + 10)
     assert first_ds.support is Support.DOUBLE and first_ds.landing_side is None
     assert first_ds.time_in_phase_s == pytest.approx(0.05)
