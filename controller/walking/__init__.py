@@ -5,6 +5,7 @@ cart-table -> quintic swing feet -> closed-form leg IK -> `WalkingPattern`, read
 the Kdist schedule by phase. Imports nothing of ours outside `controller`.
 """
 
+from controller.walking.center_of_mass import CenterOfMassModel, PinocchioCenterOfMass
 from controller.walking.footsteps import (
     Footstep,
     FootstepPlan,
@@ -13,7 +14,7 @@ from controller.walking.footsteps import (
     StepTiming,
     straight_walk_plan,
 )
-from controller.walking.kdist_schedule import KdistSchedule, kdist_gain
+from controller.walking.kdist_schedule import KdistSchedule, kdist_gain, kdist_per_joint
 from controller.walking.leg_ik import (
     LegGeometry,
     LegIkError,
@@ -37,6 +38,7 @@ from controller.walking.zmp_reference import ZmpReferenceParams, ZmpTransition, 
 __all__ = [
     "CartTableParams",
     "CartTableTrajectory",
+    "CenterOfMassModel",
     "Footstep",
     "FootstepPlan",
     "FootstepPlanError",
@@ -45,6 +47,7 @@ __all__ = [
     "LegIkError",
     "LegsGeometry",
     "PhaseSample",
+    "PinocchioCenterOfMass",
     "PreviewGains",
     "PreviewWeights",
     "SegmentKind",
@@ -60,6 +63,7 @@ __all__ = [
     "ZmpTransition",
     "design_preview_controller",
     "kdist_gain",
+    "kdist_per_joint",
     "leg_inverse_kinematics",
     "legs_inverse_kinematics",
     "quintic_blend",

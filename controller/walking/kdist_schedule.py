@@ -24,6 +24,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from controller.walking.footsteps import FootstepPlanError, Side, StepTiming
 from controller.walking.timeline import PhaseSample, SegmentKind
 
@@ -87,3 +89,11 @@ def kdist_gain(side: Side, phase: PhaseSample, schedule: KdistSchedule) -> float
         release_start = schedule.hold_after_touchdown_s
     s = (phase.time_in_phase_s - release_start) / schedule.release_s
     return _cubic(schedule.landing_gain, schedule.stance_gain, s)
+
+
+def kdist_per_joint(phase: PhaseSample, schedule: KdistSchedule) -> np.ndarray:
+    """Kdist for the 12 leg joints (left hip yaw..ankle roll, then right): each leg's gain on
+    all six of its joints, as the lab's code schedules it."""
+    left = kdist_gain(Side.LEFT, phase, schedule)
+    right = kdist_gain(Side.RIGHT, phase, schedule)
+    return np.repeat([left, right], 6)

@@ -7,7 +7,10 @@ For a footstep plan and parameters, `WalkingPattern` computes at construction:
     pelvis stands in for the CoM, as in the lab's code), yaw = the mean of the feet's yaws;
   - the feet (ankle-roll frames): planted at ankle_height_m above their footsteps, quintic
     swings (`swing_foot.py`);
-  - with a leg geometry, the 12 joint angles by closed-form IK (`leg_ik.py`).
+  - with a leg geometry, the 12 joint angles by closed-form IK (`leg_ik.py`);
+  - with a leg geometry and a whole-robot CoM model (`center_of_mass.py`), the pelvis instead
+    solved per tick (fixed-point iteration, warm-started from the previous tick) so that the
+    model's CoM at the IK posture is the planned CoM within com_tolerance_m.
 `sample(tick)` then returns views into those arrays: no computation on the 200 Hz path.
 
 Frames: world x forward, y left, z up, ground at z = 0; positions [m], angles [rad].
@@ -20,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from controller.walking.center_of_mass import CenterOfMassModel
 from controller.walking.dyros_jet_figures import SOLE_BELOW_ANKLE_M
 from controller.walking.footsteps import FootstepPlan, FootstepPlanError, Side
 from controller.walking.leg_ik import LegIkError, LegsGeometry, leg_inverse_kinematics
@@ -42,7 +46,9 @@ class WalkingParams:
     """dt_s: control period; com_height_m: the cart-table's zc; preview_horizon_s: Kajita's
     1.6 s by default; swing_height_m: swing apex above the ground (the lab's 2018 value, 0.05);
     ankle_height_m: the ankle axes above the sole (DYROS-JET: 0.105, `dyros_jet_figures`);
-    pelvis_offset_from_com_m: pelvis origin minus CoM in the pelvis's yaw frame."""
+    pelvis_offset_from_com_m: pelvis origin minus CoM in the pelvis's yaw frame (the start
+    value of the per-tick solve when a CoM model is given); zmp: smooth double-support
+    transitions by default (lower peak error than linear ones, same RMS)."""
 
     dt_s: float = 0.005
     com_height_m: float = 0.8
@@ -55,8 +61,16 @@ class WalkingParams:
     swing_height_m: float = 0.05
     ankle_height_m: float = SOLE_BELOW_ANKLE_M
     pelvis_offset_from_com_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    com_tolerance_m: float = 1e-7
+    com_max_iterations: int = 50
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.com_tolerance_m) and self.com_tolerance_m > 0):
+            raise ValueError(f"com_tolerance_m must be > 0, got {self.com_tolerance_m}")
+        if not (isinstance(self.com_max_iterations, int) and self.com_max_iterations >= 1):
+            raise ValueError(
+                f"com_max_iterations must be an int >= 1, got {self.com_max_iterations}"
+            )
         for name in ("swing_height_m", "ankle_height_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -108,7 +122,8 @@ class WalkingPattern:
     time_s (N,); zmp_reference_m (N, 2); model_zmp_m (N, 2) (the cart-table's ZMP);
     com_position_m, com_velocity_mps, com_acceleration_mps2 (N, 3); pelvis_position_m (N, 3);
     pelvis_yaw_rad (N,); foot_position_m, foot_velocity_mps, foot_acceleration_mps2 (N, 2, 3);
-    foot_yaw_rad (N, 2); joint_angles_rad (N, 12) or None.
+    foot_yaw_rad (N, 2); joint_angles_rad (N, 12) or None; model_com_m (N, 3), the CoM model's
+    CoM at the solved posture, or None without a CoM model.
     """
 
     def __init__(
@@ -116,7 +131,10 @@ class WalkingPattern:
         plan: FootstepPlan,
         params: WalkingParams | None = None,
         legs: LegsGeometry | None = None,
+        com_model: CenterOfMassModel | None = None,
     ) -> None:
+        if com_model is not None and legs is None:
+            raise ValueError("a CoM model needs the leg geometry (the pelvis is solved by IK)")
         params = WalkingParams() if params is None else params
         self.plan = plan
         self.params = params
@@ -155,14 +173,25 @@ class WalkingPattern:
         self.pelvis_position_m[:, 0] += c * offset[0] - s * offset[1]
         self.pelvis_position_m[:, 1] += s * offset[0] + c * offset[1]
         self.pelvis_position_m[:, 2] += offset[2]
+        self.joint_angles_rad: np.ndarray | None = None
+        self.model_com_m: np.ndarray | None = None
+        if legs is not None:
+            self.joint_angles_rad = np.empty((n, 12))
+            if com_model is None:
+                self._solve_ik(legs)
+            else:
+                self.model_com_m = np.empty((n, 3))
+                self._solve_ik_on_com(legs, com_model)
         for array in (
             self.com_position_m,
             self.com_velocity_mps,
             self.com_acceleration_mps2,
             self.pelvis_position_m,
+            self.joint_angles_rad,
+            self.model_com_m,
         ):
-            _read_only(array)
-        self.joint_angles_rad = None if legs is None else _read_only(self._solve_ik(legs))
+            if array is not None:
+                _read_only(array)
 
     def __len__(self) -> int:
         return self.timeline.n_ticks
@@ -210,24 +239,75 @@ class WalkingPattern:
         self.foot_velocity_mps = _read_only(np.ascontiguousarray(vel[:, :, :3]))
         self.foot_acceleration_mps2 = _read_only(np.ascontiguousarray(acc[:, :, :3]))
 
-    def _solve_ik(self, legs: LegsGeometry) -> np.ndarray:
-        angles = np.empty((self.n_ticks, 12))
-        for k in range(self.n_ticks):
-            pelvis_rotation = yaw_rotation(self.pelvis_yaw_rad[k])
-            for side in Side:
-                try:
-                    angles[k, 6 * side.index : 6 * side.index + 6] = leg_inverse_kinematics(
-                        legs.leg(side),
-                        self.pelvis_position_m[k],
-                        pelvis_rotation,
-                        self.foot_position_m[k, side.index],
-                        yaw_rotation(self.foot_yaw_rad[k, side.index]),
-                    )
-                except LegIkError as error:
-                    raise LegIkError(
-                        f"tick {k} (t = {k * self.dt_s:.3f} s), {side.value} leg: {error}"
-                    ) from error
+    def _legs_ik(
+        self, legs: LegsGeometry, k: int, pelvis_position: np.ndarray, pelvis_rotation: np.ndarray
+    ) -> np.ndarray:
+        angles = np.empty(12)
+        for side in Side:
+            try:
+                angles[6 * side.index : 6 * side.index + 6] = leg_inverse_kinematics(
+                    legs.leg(side),
+                    pelvis_position,
+                    pelvis_rotation,
+                    self.foot_position_m[k, side.index],
+                    yaw_rotation(self.foot_yaw_rad[k, side.index]),
+                )
+            except LegIkError as error:
+                raise LegIkError(
+                    f"tick {k} (t = {k * self.dt_s:.3f} s), {side.value} leg: {error}"
+                ) from error
         return angles
+
+    def _solve_ik(self, legs: LegsGeometry) -> None:
+        for k in range(self.n_ticks):
+            self.joint_angles_rad[k] = self._legs_ik(
+                legs, k, self.pelvis_position_m[k], yaw_rotation(self.pelvis_yaw_rad[k])
+            )
+
+    def _solve_ik_on_com(self, legs: LegsGeometry, com_model: CenterOfMassModel) -> None:
+        """Per tick, Newton's method on the pelvis position p for CoM(p) = CoM reference: the
+        IK re-solves the legs for each p (feet fixed), J = dCoM/dp is estimated once by finite
+        differences at the first tick (it is close to the identity scaled by the share of the
+        mass that moves with the pelvis, and changes little over a walk), then
+        p += J^-1 (CoM reference - CoM(p)) until the residual is under com_tolerance_m. The
+        start value is extrapolated from the previous two ticks' pelvis - CoM offsets."""
+        tolerance, max_iterations = self.params.com_tolerance_m, self.params.com_max_iterations
+
+        def model_com(k: int, pelvis: np.ndarray, rotation: np.ndarray):
+            angles = self._legs_ik(legs, k, pelvis, rotation)
+            return angles, np.asarray(com_model(pelvis, rotation, angles), dtype=float)
+
+        rotation = yaw_rotation(self.pelvis_yaw_rad[0])
+        start = self.pelvis_position_m[0].copy()
+        _, com_start = model_com(0, start, rotation)
+        step_m = 1e-4
+        jacobian = np.empty((3, 3))
+        for axis in range(3):
+            moved = start.copy()
+            moved[axis] += step_m
+            jacobian[:, axis] = (model_com(0, moved, rotation)[1] - com_start) / step_m
+        inverse = np.linalg.inv(jacobian)
+
+        offsets = [start - self.com_position_m[0]] * 2
+        for k in range(self.n_ticks):
+            rotation = yaw_rotation(self.pelvis_yaw_rad[k])
+            target = self.com_position_m[k]
+            pelvis = target + 2.0 * offsets[-1] - offsets[-2]
+            for _ in range(max_iterations):
+                angles, com = model_com(k, pelvis, rotation)
+                residual = target - com
+                if np.abs(residual).max() < tolerance:
+                    break
+                pelvis = pelvis + inverse @ residual
+            else:
+                raise LegIkError(
+                    f"tick {k}: the pelvis solve for the planned CoM did not converge in "
+                    f"{max_iterations} iterations (residual {np.abs(residual).max():.2e} m)"
+                )
+            self.pelvis_position_m[k] = pelvis
+            self.joint_angles_rad[k] = angles
+            self.model_com_m[k] = com
+            offsets = [offsets[-1], pelvis - target]
 
     def sample(self, tick: int) -> WalkingSample:
         """The pattern at `tick` (0 <= tick < n_ticks)."""

@@ -13,6 +13,7 @@ from controller.walking import (
     StepTiming,
     WalkTimeline,
     kdist_gain,
+    kdist_per_joint,
     straight_walk_plan,
 )
 
@@ -94,3 +95,10 @@ def test_check_timing_refuses_ramps_longer_than_their_phases():
         KdistSchedule(hold_after_touchdown_s=0.3).check_timing(StepTiming(0.8, 0.3, 1.6, 1.0))
     with pytest.raises(ValueError, match="release_s"):
         KdistSchedule(release_s=0.0)
+
+
+def test_per_joint_vector_repeats_each_legs_gain_over_its_six_joints():
+    timeline = WalkTimeline(straight_walk_plan(2, 0.2, StepTiming(0.8, 0.3, 1.6, 1.0)), DT)
+    touchdown = int(timeline.touchdown_ticks[0])  # the right leg has just landed
+    gains = kdist_per_joint(timeline.phase(touchdown), KdistSchedule())
+    assert gains.tolist() == [0.2] * 6 + [1.0] * 6
