@@ -9,7 +9,7 @@ For a footstep plan and parameters, `WalkingPattern` computes at construction:
     swings (`swing_foot.py`);
   - with a leg geometry, the 12 joint angles by closed-form IK (`leg_ik.py`);
   - with a leg geometry and a whole-robot CoM model (`center_of_mass.py`), the pelvis instead
-    solved per tick (fixed-point iteration, warm-started from the previous tick) so that the
+    solved per tick (Newton's method, warm-started from the previous ticks) so that the
     model's CoM at the IK posture is the planned CoM within com_tolerance_m.
 `sample(tick)` then returns views into those arrays: no computation on the 200 Hz path.
 
@@ -47,8 +47,9 @@ class WalkingParams:
     1.6 s by default; swing_height_m: swing apex above the ground (the lab's 2018 value, 0.05);
     ankle_height_m: the ankle axes above the sole (DYROS-JET: 0.105, `dyros_jet_figures`);
     pelvis_offset_from_com_m: pelvis origin minus CoM in the pelvis's yaw frame (the start
-    value of the per-tick solve when a CoM model is given); zmp: smooth double-support
-    transitions by default (lower peak error than linear ones, same RMS)."""
+    value of the per-tick solve when a CoM model is given); com_tolerance_m and
+    com_max_iterations: that solve's tolerance per axis and iteration limit; zmp: smooth
+    double-support transitions by default (lower peak error than linear ones, same RMS)."""
 
     dt_s: float = 0.005
     com_height_m: float = 0.8
