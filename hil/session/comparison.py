@@ -93,7 +93,7 @@ def run_comparison(
             incomplete = incomplete or f"{experiment.name} / {choice.label}: {result.ending}"
             if result.termination is Termination.INTERRUPTED:
                 break
-    report = _write(root, entries, session.setup, time.perf_counter() - started)
+    report = write_comparison_report(root, entries, session.setup, time.perf_counter() - started)
     print(report.table_text)
     print(f"report: {report.markdown_path}")
     if session.json_output:
@@ -103,7 +103,10 @@ def run_comparison(
     return ComparisonOutcome(root, report, incomplete)
 
 
-def _write(root: Path, entries: Sequence[RunEntry], setup: str, wall_time_s: float) -> Report:
+def write_comparison_report(
+    root: Path, entries: Sequence[RunEntry], setup: str, wall_time_s: float
+) -> Report:
+    """The report of the testbed comparison (figures, relations, tables) for these runs."""
     relations = []
     figures: list[Path] = []
     problems: list[str] = []

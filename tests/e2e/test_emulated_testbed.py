@@ -16,9 +16,9 @@ from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
 from hil.cli import main
 from hil.config import load_config
-from hil.emulation import EmbeddedEmulator, emulator_spec
 from hil.experiments import get_experiment
-from hil.hardware import Connection, make_bus
+from hil.wiring import Connection, make_bus
+from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
 
 MOTOR_STEP_RAD = 2 * math.pi / 501_923
 LINK_STEP_RAD = 2 * math.pi / 983_040
@@ -34,7 +34,8 @@ def test_a_goal_written_through_the_driver_moves_the_emulated_plant() -> None:
     config = load_config()
     spec = emulator_spec(config, experiment=get_experiment("impact"))  # no block in the way
     with EmbeddedEmulator(spec) as emulator:
-        bus = make_bus(config, Connection.from_endpoints(emulator.endpoints), clock=time.monotonic)
+        connection = Connection.from_endpoints(emulator.endpoints, config)
+        bus = make_bus(config, connection, clock=time.monotonic)
         with bus:
             first = bus.read()
             assert first.motor_valid.all() and first.link_valid.all()
@@ -70,8 +71,9 @@ def _run_json(tmp_path: Path, *args: str) -> dict:
 
 @pytest.mark.timeout(200)
 def test_lockstep_runs_with_the_same_seed_write_the_same_log(tmp_path: Path) -> None:
+    """Same seed, same bytes; another seed, another log (the noisy encoder's noise is seeded)."""
     logs = []
-    for name in ("a", "b"):
+    for name, seed in (("a", "7"), ("b", "7"), ("c", "8")):
         result = _run_json(
             tmp_path / name,
             "impact",
@@ -83,10 +85,11 @@ def test_lockstep_runs_with_the_same_seed_write_the_same_log(tmp_path: Path) -> 
             "--inject",
             "noisy_encoder@0.5",
             "--seed",
-            "7",
+            seed,
         )
         logs.append((Path(result["out_dir"]) / "log.csv").read_bytes())
     assert logs[0] == logs[1]
+    assert logs[0] != logs[2]
     stop_cycles = load_config().loop.stop_cycles
     assert len(logs[0].splitlines()) == 1 + 2.5 / 0.005 + stop_cycles  # header + every tick
 

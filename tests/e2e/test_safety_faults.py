@@ -1,6 +1,9 @@
-"""Each injected fault leads to its documented reaction (docs/safety.md) within a bounded number
-of ticks, rehearsed exactly as a user would: `hil run contact --inject FAULT@T[+D]` on the
-embedded emulated testbed (lock-step, so the tick counts are exact and repeatable).
+"""Injected faults through the real buses, rehearsed exactly as a user would: `hil run contact
+--inject FAULT@T[+D]` on the embedded emulated testbed (lock-step, so the tick counts are exact
+and repeatable). The in-process bus runs every case in milliseconds
+(tests/hil/test_loop_faults.py); here the ones whose path through the wire differs: a lost reply
+and a corrupt one (the driver's CRC check), a silent ID (the driver's timeout), a dead encoder
+(the CAN reader's missing TPDO) and a noisy one.
 
 The controller is gc+lqr+dob; the contact experiment holds until 1 s, then ramps the reference
 down (the motor moves), so faults injected at 1.0-1.5 s hit a moving joint.
@@ -21,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from safety_rig import PERIOD_S, Run, assert_log_complete, hil_run
 
 from hil.config import load_config
+from tests.support.rig import PERIOD_S, Run, assert_log_complete, hil_run
 
 SAFETY = load_config().safety
 
@@ -40,16 +43,10 @@ class FaultCase:
 
 CASES = (
     FaultCase("dropped_reply@1.0", 1.3, None, None, 1, notice="bus_glitch"),
-    FaultCase("corrupt_crc@1.0", 1.3, None, None, 1, notice="bus_glitch"),
-    FaultCase("dropped_reply@1.0+0.05", 1.3, "bus_error", "torque_off", SAFETY.bus_error_ticks),
     FaultCase("corrupt_crc@1.0+0.05", 1.3, "bus_error", "torque_off", SAFETY.bus_error_ticks),
     FaultCase("silent_id@1.0", 1.05, "bus_error", "torque_off", SAFETY.bus_error_ticks),
     FaultCase("dead_encoder@1.0", 1.03, "link_stale", "hold", SAFETY.link_stale_ticks),
-    # frozen while the motor moves: fires once the motor moved half the deflection bound
-    # (0.03 rad) - at the ramp's ~0.17 rad/s there, 0.03 / 0.17 / 0.005 = 35 ticks at most
-    FaultCase("stale_encoder@1.5", 1.8, "link_stale", "hold", 40),
     FaultCase("noisy_encoder@1.0", 1.3, "link_noisy", "hold", 20),
-    FaultCase("overrun@1.0+0.2", 1.3, "overrun", "hold", SAFETY.overrun_limit + 1),
 )
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from safety_rig import (
+from tests.support.rig import (
     DXL_ID,
     assert_log_complete,
     config_with,
@@ -18,7 +18,8 @@ from safety_rig import (
     run_on,
 )
 
-from drivers.joint_bus import HardwareError
+from drivers.dynamixel import HardwareError
+from drivers.joint_bus import ActuatorFault
 
 DURATION_S = 5.0  # contact at ~2.3 s; pid trips ~1.8 s later
 
@@ -39,12 +40,12 @@ def test_pid_into_the_block_trips_the_overload_and_the_stack_sees_it_at_once(
 ) -> None:
     result, run, device = pid_unguarded
     columns = run.columns
-    hw = columns["hardware_error"].astype(int)
-    trip = first_tick(hw != 0)
+    faults = columns["actuator_fault"].astype(int)
+    trip = first_tick(faults != 0)
     assert trip is not None, "the actuator's overload protection did not trip"
-    assert hw[trip] == HardwareError.OVERLOAD
+    assert faults[trip] == ActuatorFault.OVERLOAD
     # Within one tick: the read before showed a healthy device with torque on.
-    assert hw[trip - 1] == 0 and columns["torque_enabled"][trip - 1] == 1
+    assert faults[trip - 1] == 0 and columns["torque_enabled"][trip - 1] == 1
     event = run.first_trip()
     assert event is not None
     assert (event["cause"], event["joint"], event["action"]) == (
@@ -54,7 +55,7 @@ def test_pid_into_the_block_trips_the_overload_and_the_stack_sees_it_at_once(
     )
     assert event["tick"] == trip and event["time_s"] == pytest.approx(trip * 0.005)
     assert "OVERLOAD" in event["message"] and f"actuator {DXL_ID}" in event["message"]
-    assert result.termination == "safety stop: hardware_error (torque_off)"
+    assert result.ending.text == "safety stop: hardware_error (torque_off)"
     # It stops commanding on that tick: no goal is sent any more, the state stays latched.
     assert np.isnan(columns["goal_rad"][trip:]).all()
     assert np.isfinite(columns["goal_rad"][:trip]).all()
@@ -71,7 +72,7 @@ def test_the_log_holds_the_whole_story_of_the_trip(pid_unguarded) -> None:
     assert_log_complete(run)
     columns = run.columns
     force = columns["contact_force_n"]
-    trip = first_tick(columns["hardware_error"] != 0)
+    trip = first_tick(columns["actuator_fault"] != 0)
     contact = first_tick(force > 1.0)
     assert contact is not None and trip is not None and contact < trip
     # The paper: the position-controlled joint reaches >= 70 N before its protection acts
@@ -94,7 +95,7 @@ def test_the_dob_controller_in_the_same_experiment_does_not_trip(tmp_path) -> No
         )
         device = read_device(emulator.endpoints)
     assert run.termination == "completed"
-    assert (run.columns["hardware_error"] == 0).all()
+    assert (run.columns["actuator_fault"] == 0).all()
     assert run.trips() == []
     force = run.columns["contact_force_n"]
     assert 10.0 < force.max() < 50.0  # the paper: compliant at 20-40 N
@@ -106,12 +107,12 @@ def test_with_the_software_guard_pid_backs_off_before_the_actuator_trips(
     tmp_path, pid_unguarded
 ) -> None:
     _, unguarded, _ = pid_unguarded
-    tripped_at = first_tick(unguarded.columns["hardware_error"] != 0)
+    tripped_at = first_tick(unguarded.columns["actuator_fault"] != 0)
     config = config_with(current_guard=True)
     with emulated_testbed(config, "contact") as emulator:
         _, run = run_on(emulator, config, "contact", "pid", tmp_path / "pid", duration_s=DURATION_S)
         device = read_device(emulator.endpoints)
-    assert (run.columns["hardware_error"] == 0).all(), "the actuator tripped despite the guard"
+    assert (run.columns["actuator_fault"] == 0).all(), "the actuator tripped despite the guard"
     assert device.hardware_error == 0
     event = run.first_trip()
     assert event is not None and (event["cause"], event["action"]) == ("current", "back_off")

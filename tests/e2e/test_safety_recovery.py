@@ -8,13 +8,12 @@ To keep the suite fast the emulated actuator's overload protection is set to tri
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-from safety_rig import (
+from tests.support.rig import (
     PERIOD_S,
     assert_log_complete,
     config_with,
@@ -23,21 +22,20 @@ from safety_rig import (
     run_on,
 )
 
-from drivers.joint_bus import HardwareError
+from drivers.dynamixel import HardwareError
 from hil.cli import main
 from hil.config import Config
-from hil.recovery import REHOME_RATE_RAD_S
+from hil.loop.homing import REHOME_RATE_RAD_S
 
 
 def _quick_trip_config() -> Config:
     config = config_with(current_guard=False)
-    emulator = dataclasses.replace(config.emulator, servo={"overload_trip_time_s": 0.3})
-    return config.with_overrides(emulator=emulator)
+    return config.changed("emulator", servo={"overload_trip_time_s": 0.3})
 
 
 def _trip(emulator, config: Config, out: Path) -> None:
     result, _ = run_on(emulator, config, "contact", "pid", out, duration_s=3.2)
-    assert result.termination == "safety stop: hardware_error (torque_off)"
+    assert result.ending.text == "safety stop: hardware_error (torque_off)"
     device = read_device(emulator.endpoints)
     assert device.hardware_error == HardwareError.OVERLOAD and device.torque_enabled == 0
 
@@ -52,10 +50,10 @@ def test_after_a_trip_a_run_is_refused_until_reboot_first_then_it_rehomes_slowly
         refused, _ = run_on(
             emulator, config, "contact", "gc+lqr+dob", tmp_path / "refused", duration_s=1.0
         )
-        assert refused.termination.startswith(
+        assert refused.ending.text.startswith(
             "start refused: actuator 1 (testbed) reports OVERLOAD"
         )
-        assert "--reboot-first" in refused.termination
+        assert "--reboot-first" in refused.ending.text
         device = read_device(emulator.endpoints)
         assert device.hardware_error == HardwareError.OVERLOAD  # nothing cleared it
         assert device.torque_enabled == 0
@@ -69,11 +67,11 @@ def test_after_a_trip_a_run_is_refused_until_reboot_first_then_it_rehomes_slowly
             reboot_first=True,
         )
         device = read_device(emulator.endpoints)
-    assert result.termination == "completed"
+    assert result.ok
     assert_log_complete(run)
     kinds = [e["kind"] for e in run.events]
     assert kinds[:5] == ["open", "reboot", "reboot", "torque_on", "homing"]
-    assert (run.columns["hardware_error"] == 0).all() and device.hardware_error == 0
+    assert (run.columns["actuator_fault"] == 0).all() and device.hardware_error == 0
     homing = run.summary["homing"]
     start, target = homing["start_rad"][0], homing["target_rad"][0]
     assert start < -0.15 and target == 0.0  # from the block back to the experiment's start

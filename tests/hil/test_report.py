@@ -3,7 +3,7 @@
 Each synthetic run is built to satisfy or to violate one of the paper's relations by
 construction (a force that holds at a chosen level, a trip at a chosen delay, a damped ringing
 with a chosen amplitude, decay and offset); the report must mark each relation accordingly.
-The metrics are computed from the logs by hil.metrics, as the runner does.
+The metrics are computed from the logs by the experiments, as the loop does.
 """
 
 from __future__ import annotations
@@ -17,17 +17,23 @@ import numpy as np
 import pytest
 
 from hil.experiments import CONTACT, IMPACT, Experiment
-from hil.metrics import contact_metrics, impact_metrics
-from hil.plots import load_run, plot_run
-from hil.report import Relation, check_relations, write_report
-from hil.runlog import PER_JOINT_COLUMNS, RunLog, read_log
-from hil.runner import RunResult
-from hil.supervisor import SafetyEvent
+from hil.output import PER_JOINT_COLUMNS, RunEntry, RunLog, RunResult, load_run
+from hil.output.plots import plot_run
+from hil.output.report import Relation
+from hil.session.comparison import write_comparison_report
+from hil.vocabulary import (
+    ControllerChoice,
+    Reaction,
+    RunEnding,
+    SafetyCause,
+    SafetyEvent,
+    Termination,
+)
 
 pytestmark = pytest.mark.timeout(60)
 
 PERIOD_S = 0.01  # coarser than 200 Hz: keeps the files small, the metrics do not care
-OVERLOAD = 0x20
+OVERLOAD = 0x01  # ActuatorFault.OVERLOAD in the log's actuator_fault column
 VERSIONS = {"numpy": "9.9.9-test", "flexjoint-hil": "0.0.0-test"}
 
 
@@ -58,6 +64,7 @@ def _meta(experiment: Experiment, controller: str, kdist: float, seed: int = 7) 
     return {
         "experiment": experiment.name,
         "controller": controller,
+        "controller_label": ControllerChoice(controller, kdist).label,
         "kdist": kdist,
         "setup": "synthetic",
         "seed": seed,
@@ -97,41 +104,58 @@ def _write(
                 link_angle_rad=np.full(n, link[k]),
                 deflection_rad=np.full(n, link[k] - motor),
                 motor_current_a=np.full(n, -force[k] / 10.0),
-                hardware_error=np.full(n, hardware_error[k]),
+                actuator_fault=np.full(n, hardware_error[k]),
                 torque_enabled=np.full(n, 1 if torque else 0),
                 motor_valid=np.ones(n),
                 link_valid=np.ones(n),
             )
-            row = {
-                "tick": k,
-                "time_s": t,
-                "contact_force_n": force[k],
-                "supervisor_state": "run" if torque else "torque_off",
-                "skipped_ticks": 0,
-                "slack_s": math.nan,
-                "measured_period_s": PERIOD_S,
-            }
-            log.write_row(row, joints)
+            log.write_row(
+                k,
+                t,
+                (force[k],),
+                "run" if torque else "torque_off",
+                "experiment",
+                0,
+                [joints[c] for c in PER_JOINT_COLUMNS],
+                math.nan,
+                PERIOD_S,
+            )
         trips = np.flatnonzero(hardware_error)
         if trips.size:
             t_trip = float(time[trips[0]])
             log.event(t_trip, "hardware_error", "Overload", joint="testbed", action="torque_off")
             log.event(t_trip, "torque_off", "safety stop: torque off")
-    return read_log(out_dir / "log.csv")
+    return load_run(out_dir).columns
 
 
 def _result(out_dir: Path, metrics: dict, tripped_at: float | None) -> RunResult:
     if tripped_at is None:
-        return RunResult(out_dir, "completed", metrics, [], 10, 0.1)
-    event = SafetyEvent(0, tripped_at, "hardware_error", "testbed", "torque_off", "Overload")
-    return RunResult(out_dir, "safety stop: hardware_error (torque_off)", metrics, [event], 10, 0.1)
+        return RunResult(out_dir, RunEnding(Termination.COMPLETED), metrics, [], 10, 0.1)
+    event = SafetyEvent(
+        0,
+        tripped_at,
+        SafetyCause.HARDWARE_ERROR,
+        "testbed",
+        Reaction.TORQUE_OFF,
+        "Overload",
+    )
+    ending = RunEnding(Termination.SAFETY_STOP, "hardware_error (torque_off)")
+    return RunResult(out_dir, ending, metrics, [event], 10, 0.1)
 
 
-def write_contact(root: Path, spec: ContactRun) -> tuple[Experiment, str, float, RunResult]:
+def _entry(experiment: Experiment, spec: ContactRun | ImpactRun, result: RunResult) -> RunEntry:
+    return RunEntry(experiment.name, ControllerChoice(spec.controller, spec.kdist), result)
+
+
+def check_relations(entries: list[RunEntry]) -> list[Relation]:
+    return [*CONTACT.relations(entries), *IMPACT.relations(entries)]
+
+
+def write_contact(root: Path, spec: ContactRun) -> RunEntry:
     time = np.arange(int(CONTACT.duration_s / PERIOD_S)) * PERIOD_S
     since = time - spec.contact_s
     force = np.where(since >= 0, spec.hold_force_n * np.clip(0.2 + since / 0.3, 0, 1), 0.0)
-    link = np.maximum(CONTACT.reference_array(time), -0.2)
+    link = np.maximum([CONTACT.reference(float(t)) for t in time], -0.2)
     errors = np.zeros(time.size, dtype=int)
     trip = None
     if spec.trip_after_contact_s is not None:
@@ -139,23 +163,22 @@ def write_contact(root: Path, spec: ContactRun) -> tuple[Experiment, str, float,
         errors[time >= trip - 1e-9] = OVERLOAD
         force = np.where(time >= trip - 1e-9, 5.0, force)
     out_dir = root / f"contact-{spec.controller}-{spec.kdist:g}"
-    columns = _write(out_dir, CONTACT, spec.controller, spec.kdist, link, force, errors)
-    return CONTACT, spec.controller, spec.kdist, _result(out_dir, contact_metrics(columns), trip)
+    _write(out_dir, CONTACT, spec.controller, spec.kdist, link, force, errors)
+    metrics = CONTACT.metrics(load_run(out_dir))
+    return _entry(CONTACT, spec, _result(out_dir, metrics, trip))
 
 
-def write_impact(root: Path, spec: ImpactRun) -> tuple[Experiment, str, float, RunResult]:
-    push = IMPACT.pushes[0]
+def write_impact(root: Path, spec: ImpactRun) -> RunEntry:
+    push = IMPACT.world.pushes[0]
     time = np.arange(int(IMPACT.duration_s / PERIOD_S)) * PERIOD_S
     since = np.maximum(time - push.start_s, 0.0)
     ringing = np.exp(-since / spec.decay_s) * np.sin(2 * np.pi * spec.ringing_hz * since)
     link = -spec.offset_rad - spec.amplitude_rad * ringing
     force = np.zeros(time.size)
     out_dir = root / f"impact-{spec.controller}-{spec.kdist:g}"
-    columns = _write(
-        out_dir, IMPACT, spec.controller, spec.kdist, link, force, np.zeros(time.size, int)
-    )
-    metrics = impact_metrics(columns, push.start_s)
-    return IMPACT, spec.controller, spec.kdist, _result(out_dir, metrics, None)
+    _write(out_dir, IMPACT, spec.controller, spec.kdist, link, force, np.zeros(time.size, int))
+    metrics = IMPACT.metrics(load_run(out_dir))
+    return _entry(IMPACT, spec, _result(out_dir, metrics, None))
 
 
 # The paper's Sec. IV-B, by construction: pid presses hard and trips 1.5 s after contact, the
@@ -218,7 +241,7 @@ def contrary(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list]:
 def test_the_synthetic_logs_are_what_they_claim(paper_like: tuple[Path, list]) -> None:
     """Guard on the construction itself, so the verdict tests below test the checker."""
     _, results = paper_like
-    by = {(e.name, c, k): r.metrics for e, c, k, r in results}
+    by = {(e.experiment, str(e.choice.kind), e.choice.kdist): e.result.metrics for e in results}
     pid = by[("contact", "pid", 0.0)]
     assert pid["overload_tripped"] and pid["trip_time_after_contact_s"] == pytest.approx(1.5)
     assert pid["peak_contact_force_n"] == pytest.approx(85.0)
@@ -257,17 +280,19 @@ def test_pid_trip_far_from_1_5_s_after_contact_does_not_hold(tmp_path: Path) -> 
 
 def test_missing_or_incomplete_runs_are_not_checked(paper_like: tuple[Path, list]) -> None:
     _, results = paper_like
-    without_pid = [e for e in results if e[1] != "pid"]
+    without_pid = [e for e in results if e.choice.kind != "pid"]
     relations = check_relations(without_pid)
     pid_trip = _one(relations, "pid", "overload protection")
     assert pid_trip.holds is None and "no pid run" in pid_trip.note
     assert _one(relations, "steady-state").holds is True  # does not need pid
 
     broken = []
-    for exp, controller, kdist, result in results:
-        if controller == "gc+lqr+dob" and kdist == 0.5 and exp.name == "impact":
-            result = RunResult(result.out_dir, "bus failure: no reply", result.metrics)
-        broken.append((exp, controller, kdist, result))
+    for entry in results:
+        choice = entry.choice
+        if choice.kind == "gc+lqr+dob" and choice.kdist == 0.5 and entry.experiment == "impact":
+            ending = RunEnding(Termination.BUS_FAILURE, "no reply")
+            entry = RunEntry(entry.experiment, choice, RunResult(entry.result.out_dir, ending, {}))
+        broken.append(entry)
     steady = _one(check_relations(broken), "steady-state")
     assert steady.holds is None and "ended early: bus failure" in steady.note
 
@@ -276,7 +301,7 @@ def test_write_report_creates_the_files_and_says_where_they_came_from(
     paper_like: tuple[Path, list],
 ) -> None:
     root, results = paper_like
-    report = write_report(root, results, "synthetic setup", 12.5)
+    report = write_comparison_report(root, results, "synthetic setup", 12.5)
     for name in ("report.md", "report.json", "fig5_contact.png", "fig6_impact.png"):
         path = root / name
         assert path.is_file() and path.stat().st_size > 0, name
@@ -285,8 +310,8 @@ def test_write_report_creates_the_files_and_says_where_they_came_from(
     markdown = report.markdown_path.read_text()
     assert "synthetic setup" in markdown and "seed: 7" in markdown
     assert "numpy 9.9.9-test" in markdown
-    for *_, result in results:
-        assert f"`{result.out_dir.name}/`" in markdown
+    for entry in results:
+        assert f"`{entry.result.out_dir.name}/`" in markdown
     assert markdown.count("**holds**") == 13
     # the terminal table: every run, how it ended, the relations
     text = report.table_text
@@ -296,12 +321,12 @@ def test_write_report_creates_the_files_and_says_where_they_came_from(
     on_disk = json.loads((root / "report.json").read_text())
     assert on_disk["relation_counts"] == {"holds": 13, "does not hold": 0, "not checked": 0}
     assert report.summary["seed"] == 7 and len(on_disk["runs"]) == len(results)
-    assert json.dumps(report.summary, default=str)
+    assert json.loads(json.dumps(report.summary, default=str)) == on_disk
 
 
 def test_report_marks_failures_in_markdown_and_text(contrary: tuple[Path, list]) -> None:
     root, results = contrary
-    report = write_report(root, results, "synthetic setup", 1.0)
+    report = write_comparison_report(root, results, "synthetic setup", 1.0)
     markdown = report.markdown_path.read_text()
     assert "**does not hold**" in markdown and "**holds**" not in markdown
     assert "[does not hold]" in report.table_text
@@ -309,9 +334,11 @@ def test_report_marks_failures_in_markdown_and_text(contrary: tuple[Path, list])
 
 def test_plot_run_writes_a_png_for_each_experiment(paper_like: tuple[Path, list]) -> None:
     _, results = paper_like
-    for experiment, _, _, result in (results[0], results[-1]):
-        paths = plot_run(result.out_dir, experiment)
-        assert paths == [result.out_dir / "plot.png"]
+    for entry in (results[0], results[-1]):
+        experiment = CONTACT if entry.experiment == "contact" else IMPACT
+        run = load_run(entry.result.out_dir)
+        paths = plot_run(run, experiment.marks(run))
+        assert paths == [entry.result.out_dir / "plot.png"]
         assert paths[0].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -328,15 +355,16 @@ def test_plot_run_draws_each_joint_of_a_multi_joint_log(tmp_path: Path) -> None:
         np.zeros(size, int),
         joint_names=("hip", "knee"),
     )
-    assert load_run(tmp_path).joint_names == ("hip", "knee")
-    paths = plot_run(tmp_path, IMPACT)
+    run = load_run(tmp_path)
+    assert run.joint_names == ("hip", "knee")
+    paths = plot_run(run, IMPACT.marks(run))
     assert [p.name for p in paths] == ["plot-hip.png", "plot-knee.png"]
     assert all(p.is_file() for p in paths)
 
 
 def test_plot_run_says_what_is_missing(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="no log.csv"):
-        plot_run(tmp_path, IMPACT)
+        load_run(tmp_path)
 
 
 def test_a_dob_run_that_trips_is_not_compliant_even_at_a_small_force(tmp_path: Path) -> None:

@@ -94,17 +94,22 @@ def load_run(out_dir: Path, exit_code: int | None = None) -> Run:
 
 
 def assert_log_complete(run: Run) -> None:
-    """Every file of the run is on disk and whole: one log row per tick the summary counts,
-    no torn line, every event a JSON line, an exit note saying what torque was left in."""
+    """Every file of the run is on disk and whole: one log row per cycle the loop ran (a
+    wall-clock loop that missed whole periods records them in `skipped_ticks`: rows plus skipped
+    ticks make the run's ticks), no torn line, an exit note saying what torque was left in."""
     text = (run.dir / "log.csv").read_text()
     assert text.endswith("\n"), "log.csv ends in the middle of a row"
     rows = list(csv.reader(io.StringIO(text)))
     header, body = rows[0], rows[1:]
     assert all(len(row) == len(header) for row in body), "a log row is torn"
-    assert len(body) == run.summary["ticks"], (len(body), run.summary["ticks"])
-    assert [int(row[0]) for row in body] == list(range(len(body)))
+    ticks = [int(row[header.index("tick")]) for row in body]
+    skipped = [int(row[header.index("skipped_ticks")]) for row in body]
+    assert len(body) + sum(skipped) == run.summary["ticks"], (len(body), run.summary["ticks"])
+    assert ticks[0] == skipped[0] and all(
+        b - a == 1 + s for a, b, s in zip(ticks, ticks[1:], skipped[1:], strict=False)
+    ), "the tick column does not follow the grid"
     assert run.summary["exit"], "summary.json does not say what the exit path did"
-    for name in ("meta.json", "timing.csv"):
+    for name in ("meta.json", "timing.csv", "events.jsonl"):
         assert (run.dir / name).is_file()
 
 

@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 
 import pytest
-from safety_rig import (
+from tests.support.rig import (
     FACTORY_MAX_POSITION,
     FACTORY_RETURN_DELAY,
     emulated_testbed,
@@ -43,7 +43,7 @@ BAD_CONFIGS = {
     ),
     "limit beyond the actuator": (
         _edited("max_angle_rad = 0.8", "max_angle_rad = 4.0"),
-        "outside the H54's position range",
+        "position-mode range",
     ),
     "unknown reaction": (
         _edited('on_bus_error = "torque_off"', 'on_bus_error = "panic"'),

@@ -1,5 +1,5 @@
-"""`hil bench bus` and `hil bench loop`: the wire-time formula against the protocol's packet
-sizes, and a smoke run of each bench (tiny cycle counts) through `cmd_bench --json`.
+"""`hil bench bus` and `hil bench loop`: a smoke run of each bench (tiny cycle counts) through
+`cmd_bench --json` (the wire-time formula is tested in tests/drivers/test_wire_time.py).
 
 The smoke runs check the report's structure and that every figure is positive and finite; they
 assert no timing (this is a shared, noisy 2-core VM). They run the real benches: emulator in a
@@ -19,17 +19,12 @@ from typing import Any
 import pytest
 
 from controller import CONTROLLER_NAMES
-from hil.bench import (
-    EMULATOR_LINES,
-    JOINT_COUNTS,
-    bus_report_text,
-    cmd_bench,
-    config_with_joints,
-    loop_report_text,
-    sync_cycle_wire_bytes,
-    sync_cycle_wire_time_s,
-)
+from drivers.dynamixel.wire_time import sync_cycle_wire_time_s
+from hil.bench.bus import EMULATOR_LINES, JOINT_COUNTS, bus_report_text
+from hil.bench.common import config_with_joints
+from hil.bench.loop import loop_report_text
 from hil.cli import main
+from hil.cli.bench import cmd_bench
 from hil.config import default_config_text, load_config
 
 # The built-in testbed at another baud: the bench must take the configuration it is given.
@@ -44,39 +39,6 @@ def _one_json_line(capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1, "--json prints exactly one line"
     return json.loads(out[0])
-
-
-def test_wire_bytes_follow_the_protocol_packet_sizes() -> None:
-    # 6 x H54 reading Present Position .. Present Current (L = 12): SYNC_READ 14 + 6,
-    # replies 6 x (11 + 12), SYNC_WRITE 14 + 6 x 5 = 20 + 138 + 44.
-    assert sync_cycle_wire_bytes(6, 12) == 202
-    # One device, the driver's 15-byte state block: 15 + 26 + 19.
-    assert sync_cycle_wire_bytes(1, 15) == 60
-    # A 2-byte goal instead of 4 saves 2 bytes per device in the SYNC_WRITE only.
-    assert sync_cycle_wire_bytes(6, 12) - sync_cycle_wire_bytes(6, 12, write_bytes=2) == 12
-
-
-@pytest.mark.parametrize(
-    ("baudrate", "return_delay_us", "expected_ms"),
-    [
-        (57_600, 0, 35.07),  # 2020 bits at the factory baud
-        (1_000_000, 0, 2.02),
-        (3_000_000, 0, 0.6733),
-        (4_000_000, 500, 3.505),  # + 6 x the factory Return Delay Time (500 us)
-    ],
-)
-def test_wire_time_is_ten_bits_per_byte_plus_return_delays(
-    baudrate: int, return_delay_us: int, expected_ms: float
-) -> None:
-    time_s = sync_cycle_wire_time_s(6, 12, baudrate, return_delay_us)
-    assert time_s * 1e3 == pytest.approx(expected_ms, rel=1e-3)
-
-
-def test_wire_time_refuses_meaningless_input() -> None:
-    with pytest.raises(ValueError, match="n_devices"):
-        sync_cycle_wire_bytes(0, 12)
-    with pytest.raises(ValueError, match="baudrate_bps > 0"):
-        sync_cycle_wire_time_s(1, 12, 0)
 
 
 def test_config_with_joints_gives_distinct_addresses_and_no_force_sensor() -> None:
