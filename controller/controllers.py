@@ -43,7 +43,6 @@ from controller.model import (
 )
 
 
-
 class ControllerKind(enum.StrEnum):
     """The four controllers of Sec. IV; the value is the name users type (`--controller`)."""
 

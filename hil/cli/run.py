@@ -12,7 +12,7 @@ from hil.config import Config, ConfigError
 from hil.experiments import get_experiment
 from hil.loop import StopFlag
 from hil.safety import ReferenceOutsideLimits
-from hil.session import Session, SessionError, run_comparison
+from hil.session import Session, SessionError, Setup, run_comparison
 from hil.vocabulary import ControllerChoice
 
 _SINGLE_RUN_OPTIONS = (
@@ -80,9 +80,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     faults, overruns = parse_injections(args.inject)
     embedded = (args.config is None or args.emulate) and not (args.attach and args.config is None)
     _check_combinations(args, embedded, faults)
+    setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
     session = Session(
         config,
-        embedded=embedded,
+        setup,
         realtime=args.realtime,
         attach=load_attach(args.attach) if args.attach else None,
         overrides=connection_overrides(args),

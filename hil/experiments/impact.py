@@ -174,6 +174,18 @@ def impact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
         )
     )
 
+    return [*relations, *_settling_relations(exp, entries)]
+
+
+def _settling_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
+    """After the push: who settles faster than pid, and the Kdist order of the offset."""
+    dob = ControllerKind.GC_LQR_DOB
+    pid = find(entries, exp, ControllerKind.PID)
+    high = find(entries, exp, dob, 1.0)
+    middle = find(entries, exp, dob, 0.5)
+    high_label = ControllerChoice(dob, 1.0).label
+    middle_label = ControllerChoice(dob, 0.5).label
+    relations = []
     faster = [(high, high_label), (middle, middle_label)]
     gc_lqr = find(entries, exp, ControllerKind.GC_LQR)
     if gc_lqr is not None:

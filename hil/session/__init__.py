@@ -1,7 +1,7 @@
 """Where runs happen: one run on a setup (`Session`), and the paper's comparison."""
 
 from hil.session.comparison import COMPARISON_CHOICES, ComparisonOutcome, run_comparison
-from hil.session.session import ConnectionOverrides, Session, SessionError
+from hil.session.session import ConnectionOverrides, Session, SessionError, Setup
 
 __all__ = [
     "COMPARISON_CHOICES",
@@ -9,5 +9,6 @@ __all__ = [
     "ConnectionOverrides",
     "Session",
     "SessionError",
+    "Setup",
     "run_comparison",
 ]

@@ -93,7 +93,9 @@ def run_comparison(
             incomplete = incomplete or f"{experiment.name} / {choice.label}: {result.ending}"
             if result.termination is Termination.INTERRUPTED:
                 break
-    report = write_comparison_report(root, entries, session.setup, time.perf_counter() - started)
+    report = write_comparison_report(
+        root, entries, session.description, time.perf_counter() - started
+    )
     print(report.table_text)
     print(f"report: {report.markdown_path}")
     if session.json_output:

@@ -1,8 +1,11 @@
 """Where a run happens and what the user sees: emulator lifetime, clocks, the run's record.
 
-Three setups, one code path for the loop:
+Four setups, one code path for the loop:
     embedded (no --config, or --emulate)  a fresh `hil emulate` child per run, lock-step clock
                                           (deterministic) or, with --realtime, wall clock
+    in_process                            the emulated robot in this process, no buses
+                                          (hil.wiring.in_process): lock-step, for tests and
+                                          sweeps that need throughput
     attached (--attach JSON)              a `hil emulate` someone started: wall clock
     hardware (--config FILE [--port ...]) the ports FILE names (or the overrides): wall clock
 """
@@ -10,6 +13,7 @@ Three setups, one code path for the loop:
 from __future__ import annotations
 
 import contextlib
+import enum
 import json
 import platform
 import sys
@@ -20,6 +24,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from drivers.joint_bus import JointBus
 from hil.config import Config
 from hil.experiments import Experiment
 from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, run_experiment
@@ -30,11 +35,23 @@ from hil.output.versions import package_versions
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, EmulatorStartError, emulator_spec
+from hil.wiring.in_process import in_process_bus
 from sim_backend.scenario import FaultEvent
 
 
 class SessionError(RuntimeError):
     """A run could not start (emulator, ports): the message says what to check."""
+
+
+class Setup(enum.StrEnum):
+    EMBEDDED = "embedded"
+    IN_PROCESS = "in_process"
+    ATTACHED = "attached"
+    HARDWARE = "hardware"
+
+    @property
+    def emulated(self) -> bool:
+        return self is not Setup.HARDWARE
 
 
 @dataclass(frozen=True)
@@ -54,7 +71,7 @@ class ConnectionOverrides:
 @dataclass
 class Session:
     config: Config
-    embedded: bool
+    setup: Setup
     realtime: bool = False
     attach: dict[str, Any] | None = None
     overrides: ConnectionOverrides = field(default_factory=ConnectionOverrides)
@@ -65,11 +82,13 @@ class Session:
     quiet: bool = False
 
     @property
-    def setup(self) -> str:
-        if self.embedded:
+    def description(self) -> str:
+        if self.setup is Setup.EMBEDDED:
             return "emulated testbed, " + ("real time" if self.realtime else "lock-step")
-        if self.attach is not None:
-            return f"attached emulator {self.attach.get('dynamixel_port')}"
+        if self.setup is Setup.IN_PROCESS:
+            return "emulated testbed in process, lock-step"
+        if self.setup is Setup.ATTACHED:
+            return f"attached emulator {(self.attach or {}).get('dynamixel_port')}"
         return "hardware " + ", ".join(d.port for d in self.config.dynamixel)
 
     def say(self, text: str) -> None:
@@ -77,12 +96,26 @@ class Session:
             print(text, file=sys.stderr, flush=True)
 
     @contextlib.contextmanager
+    def bus(
+        self, experiment: Experiment, faults: tuple[FaultEvent, ...], clock: LoopClock
+    ) -> Iterator[tuple[JointBus, dict[str, Any]]]:
+        """The bus of this setup for one run, and what it connects to (an embedded emulator
+        lives as long as the run)."""
+        if self.setup is Setup.IN_PROCESS:
+            bus = in_process_bus(self.config, experiment, faults, seed=self.seed)
+            yield bus, {"in_process": True}
+            return
+        bus_clock = clock.now if isinstance(clock, LockstepClock) else time.monotonic
+        with self.connection(experiment, faults) as connection:
+            yield make_bus(self.config, connection, clock=bus_clock), connection.record()
+
+    @contextlib.contextmanager
     def connection(
         self, experiment: Experiment | None, faults: tuple[FaultEvent, ...] = ()
     ) -> Iterator[Connection]:
-        """The buses of this setup, for one run (an embedded emulator lives as long as it)."""
+        """The buses of this setup (an embedded emulator lives as long as the context)."""
         overrides = self.overrides.given
-        if self.embedded:
+        if self.setup is Setup.EMBEDDED:
             spec = emulator_spec(
                 self.config,
                 experiment=experiment,
@@ -99,16 +132,20 @@ class Session:
                 yield Connection.from_endpoints(endpoints, self.config)
             finally:
                 emulator.stop()  # also after Ctrl-C during start-up: no child left behind
-        elif self.attach is not None:
+        elif self.setup is Setup.ATTACHED:
+            assert self.attach is not None
             yield Connection.from_endpoints(self.attach, self.config).with_overrides(**overrides)
-        else:
+        elif self.setup is Setup.HARDWARE:
             yield Connection.from_config(self.config).with_overrides(**overrides)
+        else:
+            raise SessionError(f"the {self.setup} setup has no connection")
 
     def clock(self) -> LoopClock:
         period = self.config.loop.period_s
-        if self.embedded and not self.realtime:
-            return LockstepClock(period)
-        return WallClock(period)
+        lockstep = self.setup is Setup.IN_PROCESS or (
+            self.setup is Setup.EMBEDDED and not self.realtime
+        )
+        return LockstepClock(period) if lockstep else WallClock(period)
 
     def labelled(self, choice: ControllerChoice) -> ControllerChoice:
         """The choice with its reading of (25) named when the configuration's is not the lab's
@@ -147,13 +184,12 @@ class Session:
             on_progress=self._progress(choice.label),
         )
         clock = self.clock()
-        self.say(f"hil run: {experiment.name} with {choice.label} on the {self.setup} -> {out_dir}")
-        with self.connection(experiment, faults) as connection:
-            bus_clock = clock.now if isinstance(clock, LockstepClock) else time.monotonic
-            bus = make_bus(self.config, connection, clock=bus_clock)
+        self.say(
+            f"hil run: {experiment.name} with {choice.label} on the {self.description} -> {out_dir}"
+        )
+        with self.bus(experiment, faults, clock) as (bus, connection):
             meta = self._meta(experiment, choice, faults, overruns, clock, connection)
             meta["bus"] = bus.describe()
-            self.say(f"  buses: {connection.describe()}")
             result = run_experiment(self.config, request, bus, clock, meta, stop=stop)
         if self.plots and result.ticks > 1:
             try:
@@ -181,7 +217,7 @@ class Session:
         faults: tuple[FaultEvent, ...],
         overruns: tuple[tuple[float, float], ...],
         clock: LoopClock,
-        connection: Connection,
+        connection: dict[str, Any],
     ) -> dict[str, Any]:
         return {
             "experiment": experiment.name,
@@ -190,12 +226,12 @@ class Session:
             "controller_label": choice.label,
             "kdist": choice.kdist,
             "reading": choice.reading,
-            "setup": self.setup,
+            "setup": self.description,
             "clock": "lockstep" if clock.deterministic else "wall",
             "seed": self.seed if self.seed is not None else self.config.emulator.seed,
             "faults": [vars(f) for f in faults],
             "overruns": list(overruns),
-            "connection": connection.record(),
+            "connection": connection,
             "config_source": self.config.source,
             "config": self.config.record(),
             "started": datetime.now().isoformat(timespec="seconds"),

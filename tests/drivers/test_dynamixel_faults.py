@@ -15,8 +15,8 @@ from drivers.dynamixel import (
     DynamixelChain,
     DynamixelChainConfig,
     DynamixelJointConfig,
+    HardwareError,
 )
-from drivers.dynamixel import HardwareError
 from drivers.joint_bus import BusError
 from sim_backend.dynamixel.testing import spawn_emulated_chain
 

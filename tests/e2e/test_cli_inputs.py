@@ -12,15 +12,15 @@ import json
 from pathlib import Path
 
 import pytest
+
+from hil.cli import main
+from hil.config import default_config_text, load_config
 from tests.support.rig import (
     FACTORY_MAX_POSITION,
     FACTORY_RETURN_DELAY,
     emulated_testbed,
     read_device,
 )
-
-from hil.cli import main
-from hil.config import default_config_text, load_config
 
 SAMPLE = default_config_text()
 

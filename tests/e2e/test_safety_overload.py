@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from drivers.dynamixel import HardwareError
+from drivers.joint_bus import ActuatorFault
 from tests.support.rig import (
     DXL_ID,
     assert_log_complete,
@@ -17,9 +20,6 @@ from tests.support.rig import (
     read_device,
     run_on,
 )
-
-from drivers.dynamixel import HardwareError
-from drivers.joint_bus import ActuatorFault
 
 DURATION_S = 5.0  # contact at ~2.3 s; pid trips ~1.8 s later
 

@@ -13,6 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from drivers.dynamixel import HardwareError
+from hil.cli import main
+from hil.config import Config
+from hil.loop.homing import REHOME_RATE_RAD_S
 from tests.support.rig import (
     PERIOD_S,
     assert_log_complete,
@@ -21,11 +26,6 @@ from tests.support.rig import (
     read_device,
     run_on,
 )
-
-from drivers.dynamixel import HardwareError
-from hil.cli import main
-from hil.config import Config
-from hil.loop.homing import REHOME_RATE_RAD_S
 
 
 def _quick_trip_config() -> Config:

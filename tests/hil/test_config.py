@@ -71,7 +71,10 @@ def test_hil_config_prints_a_file_that_loads(capsys, tmp_path: Path) -> None:
         (_with("seed = 0", "seed = -1"), r"\[emulator\] seed: Input should be greater"),
         (_with("servo_gain_per_s = 10.0", "servo_gain_per_s = 0.0"), r"\[model\] servo_gain"),
         (
-            _with("\n[controller]\n", "\n[model.joint.knee]\nservo_gain_per_s = 18.0\n\n[controller]\n"),
+            _with(
+                "\n[controller]\n",
+                "\n[model.joint.knee]\nservo_gain_per_s = 18.0\n\n[controller]\n",
+            ),
             r"\[model.joint\] names joints that do not exist: \['knee'\]",
         ),
         (

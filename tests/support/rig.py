@@ -13,9 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import dataclasses
 import io
-import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
