@@ -127,7 +127,9 @@ def test_there_is_no_import_circle() -> None:
             name = name.rpartition(".")[0]
         return name or None
 
-    edges = {m: {r for t in targets if (r := resolve(t)) and r != m} for m, targets in GRAPH.items()}
+    edges = {
+        m: {r for t in targets if (r := resolve(t)) and r != m} for m, targets in GRAPH.items()
+    }
     visiting: list[str] = []
     done: set[str] = set()
 

@@ -42,7 +42,8 @@ def test_a_configured_literal_reading_is_named_in_the_label_and_the_directory(
 ) -> None:
     config = CONFIG.changed("controller", composition="literal")
     session = Session(config, Setup.IN_PROCESS, out_root=tmp_path, quiet=True, plots=False)
-    result = session.run_one(IMPACT, ControllerChoice(ControllerKind.GC_LQR_DOB, 1.0), duration_s=0.2)
+    choice = ControllerChoice(ControllerKind.GC_LQR_DOB, 1.0)
+    result = session.run_one(IMPACT, choice, duration_s=0.2)
     assert result.out_dir.name.endswith("-gc-lqr-dob-k1-literal")
     summary = json.loads((result.out_dir / "summary.json").read_text())
     assert summary["controller_label"] == "gc+lqr+dob (Kdist 1), literal (25)"
