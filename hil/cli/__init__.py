@@ -14,6 +14,7 @@ arguments or bad configuration (nothing was sent to any device).
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from hil.cli.exit_codes import ExitCode
@@ -35,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
         return ExitCode.FAILED
 
 
-def _dispatch(args) -> int:  # noqa: ANN001 - an argparse.Namespace
+def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "config":
         sys.stdout.write(default_config_text())
         return ExitCode.OK

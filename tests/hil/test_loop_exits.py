@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 import hil.loop.runner
-from drivers.joint_bus import BusError
+from drivers.joint_bus import BusError, JointSample
 from hil.config import load_config
 from hil.experiments import CONTACT, IMPACT
 from hil.wiring.in_process import InProcessJointBus, in_process_bus
+from sim_backend.dynamixel.device import H54Device
 from sim_backend.scenario import parse_fault
 from tests.support.rig import (
     PERIOD_S,
@@ -27,7 +28,7 @@ from tests.support.rig import (
 CONFIG = load_config()
 
 
-def _device(bus: InProcessJointBus, joint: int = 0):  # noqa: ANN202 - the emulated H54Device
+def _device(bus: InProcessJointBus, joint: int = 0) -> H54Device:
     assert bus.testbed is not None
     return bus.testbed.robot.devices[joint]
 
@@ -95,7 +96,7 @@ def test_a_lost_bus_ends_the_run_with_a_complete_log_and_says_torque_could_not_b
     bus = in_process_bus(CONFIG, CONTACT)
     real_read = bus.read
 
-    def read_until_unplugged():  # noqa: ANN202
+    def read_until_unplugged() -> JointSample:
         if bus.reads >= 200:
             raise BusError("the port vanished (injected by the test)")
         return real_read()
