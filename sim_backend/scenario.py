@@ -42,8 +42,18 @@ class FaultEvent:
             raise ValueError(
                 f"unknown emulator fault {self.kind!r}; choose one of {list(EMULATOR_FAULTS)}"
             )
-        if self.start_s < 0 or (self.duration_s is not None and self.duration_s <= 0):
-            raise ValueError(f"fault {self.kind}: start must be >= 0 and duration > 0")
+        duration_ok = self.duration_s is None or (
+            math.isfinite(self.duration_s) and self.duration_s > 0
+        )
+        if not (math.isfinite(self.start_s) and self.start_s >= 0 and duration_ok):
+            raise ValueError(
+                f"fault {self.kind}: start must be a finite time >= 0 s and the duration a "
+                f"finite time > 0 s, got start {self.start_s} s, duration {self.duration_s} s"
+            )
+        if not (math.isfinite(self.noise_counts_rms) and self.noise_counts_rms >= 0):
+            raise ValueError(f"fault {self.kind}: noise must be finite and >= 0 counts rms")
+        if self.joint < 0:
+            raise ValueError(f"fault {self.kind}: joint index must be >= 0, got {self.joint}")
 
     @property
     def end_s(self) -> float:

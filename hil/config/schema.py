@@ -183,6 +183,12 @@ class SafetySection(Section):
     link_noise_window_ticks: int = Field(20, ge=2)
     link_noise_fraction: float = Field(0.5, gt=0, le=1)
     overrun_window_s: float = Field(1.0, gt=0)
+    # Legal but dangerous: a DOB gain beyond what the paper used and the closed-loop analysis
+    # covers (controller/composition.py; tests/controller/test_closed_loop.py), and goals
+    # clipped at the position limits on most ticks (the controller is fighting the limits).
+    max_kdist: float = Field(1.0, ge=0)
+    goal_saturation_fraction: float = Field(0.5, gt=0, le=1)
+    goal_saturation_window_ticks: int = Field(200, ge=1)
     on_hardware_error: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_torque_lost: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_bus_error: Reaction = _reaction(Reaction.TORQUE_OFF)
@@ -191,6 +197,8 @@ class SafetySection(Section):
     on_deflection: Reaction = _reaction(Reaction.HOLD)
     on_current: Reaction = _reaction(Reaction.BACK_OFF)
     on_command_invalid: Reaction = _reaction(Reaction.HOLD)
+    on_goal_saturated: Reaction = _reaction(Reaction.HOLD)
+    on_gain_out_of_range: Reaction = _reaction(Reaction.HOLD)
     on_overrun: Reaction = _reaction(Reaction.HOLD)
     on_exit: Reaction = _reaction(Reaction.TORQUE_OFF)
 

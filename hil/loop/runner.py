@@ -234,6 +234,9 @@ class Loop:
         self._log_safety()
         if k == 0:  # this tick's sample predates the enable: expect torque from the next one on
             self.supervisor.torque_enabled(self._hold_goal)
+            if self.request.choice.kind.has_dob:
+                self.supervisor.check_settings(self.request.choice.kdist)
+                self._log_safety()
         self._torque_off_if_latched(k, time_s, sample)
 
     def _torque_off_if_latched(self, k: int, time_s: float, sample: JointSample) -> None:
