@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.joint_bus import JointSample
 from hil.cli.common import parse_injections
 from hil.config import load_config
 from tests.support.rig import PERIOD_S, assert_log_complete, run_in_process
@@ -113,7 +114,7 @@ def test_an_actuator_fault_with_torque_still_on_stops_the_run(tmp_path: Path) ->
     bus = in_process_bus(CONFIG, IMPACT)
     real_read = bus.read
 
-    def read_and_overheat():  # noqa: ANN202 - a JointSample
+    def read_and_overheat() -> JointSample:
         if bus.reads == 300:
             bus.testbed.robot.devices[0].raise_hardware_error(0x04)  # OVERHEATING
         return real_read()
