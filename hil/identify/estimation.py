@@ -37,7 +37,7 @@ from hil.identify.models import (
     link_velocity_estimate,
     simulate_joint,
 )
-from hil.identify.records import JointLog, KnownJointFigures
+from hil.identify.records import MIN_SAMPLES, JointLog, KnownJointFigures, LogFormatError
 from hil.identify.result import (
     FitQuality,
     IdentificationResult,
@@ -514,6 +514,12 @@ def identify(
     options = options or IdentificationOptions()
     if not logs:
         raise ValueError("identify needs at least one log")
+    for log in logs:
+        if len(log) < MIN_SAMPLES:
+            raise LogFormatError(
+                f"{log.source}: {len(log)} samples; the fit needs at least {MIN_SAMPLES} "
+                "(an identification run lasts tens of seconds)"
+            )
     gear, gear_fit = fit_gear(logs, known, options)
     servo_kp, first_order_fit = fit_first_order_servo(logs, options)
     servo, motor, cascade_fit = fit_cascade(logs, gear, known, options)
