@@ -341,7 +341,7 @@ def _one_period_predictions(
 ) -> tuple[JointState, np.ndarray]:
     """From the measured state at every sample k, the model's state and current at k+1."""
     log = data.log
-    integral = integral_from_log(log, servo)
+    integral = integral_from_log(log, servo, known.current_limit_torque_nm)
     start = JointState(
         log.motor_angle_rad[:-1],
         log.motor_velocity_rad_s[:-1],

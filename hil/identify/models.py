@@ -212,18 +212,35 @@ def first_order_response(
 # ----------------------------------------------------------------------------- the cascade
 
 
-def integral_from_log(log: JointLog, servo: ServoParams) -> np.ndarray:
+def integral_from_log(
+    log: JointLog, servo: ServoParams, torque_cap_nm: float = math.inf
+) -> np.ndarray:
     """The velocity loop's integral at each sample, from the measured signals.
 
     iota(t) = iota_0 + kv/Ti * integral(Kpp (u - theta_m) - theta_m') dt
             = iota_0 + kv/Ti * (Kpp E(t) - (theta_m(t) - theta_m(t_0)))
-    (no clipping: the identification run stays below the current and speed caps).
+    With a finite torque cap, the anti-windup of `advance` is applied per period, judged at
+    the period's start from the measured state: a period that starts clipped and winding
+    further adds nothing, and the integral stays within the cap.
     """
-    rate = servo.velocity_gain_nms_per_rad / servo.velocity_integral_time_s
+    kv = servo.velocity_gain_nms_per_rad
+    rate = kv / servo.velocity_integral_time_s
     travelled = log.motor_angle_rad - log.motor_angle_rad[0]
-    return servo.integral_initial_nm + rate * (
-        servo.position_gain_per_s * goal_integral(log) - travelled
-    )
+    increments = servo.position_gain_per_s * np.diff(goal_integral(log)) - np.diff(travelled)
+    if not math.isfinite(torque_cap_nm):
+        return servo.integral_initial_nm + rate * np.concatenate([[0.0], np.cumsum(increments)])
+    speed_error = (
+        servo.position_gain_per_s * (log.goal_rad - log.motor_angle_rad) - log.motor_velocity_rad_s
+    ).tolist()
+    steps = (rate * increments).tolist()
+    integral = [float(servo.integral_initial_nm)]
+    value = integral[0]
+    for k, step in enumerate(steps):
+        unclipped = kv * speed_error[k] + value
+        if abs(unclipped) < torque_cap_nm or unclipped * speed_error[k] < 0:
+            value = min(max(value + step, -torque_cap_nm), torque_cap_nm)
+        integral.append(value)
+    return np.array(integral)
 
 
 class _ArrayOps:

@@ -3,6 +3,7 @@ outputs (JSON, TOML fragment, figure) and reading a run log's columns."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tomllib
@@ -24,6 +25,7 @@ from hil.identify import (
     Status,
     chirp_goal_offsets,
     fit_first_order_servo,
+    fit_gear,
     identify,
     render_config_fragment,
     result_to_json,
@@ -104,6 +106,23 @@ def test_fits_recover_their_own_models_constants(result) -> None:
     # 0.7 % of the 2.9 mrad static deflection is 2e-5 rad (3 link-encoder counts).
     assert result[Parameter.DEFLECTION_OFFSET].value == pytest.approx(0.0, abs=4e-5)
     assert result[Parameter.CURRENT_LIMIT].status is Status.LOWER_BOUND
+
+
+def test_gear_scale_is_the_given_link_inertias() -> None:
+    """Kinematics fix K/I and D/I: a link inertia 10 % too large gives K and D 10 % too large
+    (the offset, a ratio of torques, stays)."""
+    log = synthetic_log()
+    options = IdentificationOptions(validation_start_s=EXCITATION.validation_start_s)
+    right, _ = fit_gear([log], KNOWN, options)
+    heavier = dataclasses.replace(
+        KNOWN,
+        link_inertia_kg_m2=1.1 * KNOWN.link_inertia_kg_m2,
+        gravity_moment_kg_m=1.1 * KNOWN.gravity_moment_kg_m,
+    )
+    scaled, _ = fit_gear([log], heavier, options)
+    assert scaled.stiffness_nm_per_rad == pytest.approx(1.1 * right.stiffness_nm_per_rad, rel=1e-4)
+    assert scaled.damping_nms_per_rad == pytest.approx(1.1 * right.damping_nms_per_rad, rel=1e-4)
+    assert scaled.deflection_offset_rad == pytest.approx(right.deflection_offset_rad, abs=1e-8)
 
 
 def test_held_out_quality_is_reported_for_every_model(result) -> None:
