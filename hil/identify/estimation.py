@@ -547,9 +547,14 @@ def identify(
     parameters = {
         Parameter.GEAR_STIFFNESS: _estimate(gear_fit, 0, Status.IDENTIFIED),
         Parameter.GEAR_DAMPING: _estimate(gear_fit, 1, Status.IDENTIFIED),
-        Parameter.DEFLECTION_OFFSET: _estimate(gear_fit, 2, Status.IDENTIFIED),
+        Parameter.DEFLECTION_OFFSET: _estimate(
+            gear_fit, 2, Status.NUISANCE, "the encoders' zero offsets; absorbs K's bias"
+        ),
         Parameter.SERVO_KP: _estimate(
-            first_order_fit, 0, Status.IDENTIFIED, "best first-order fit (4) on the swept band"
+            first_order_fit,
+            0,
+            Status.IDENTIFIED,
+            "best first-order fit (4) at this band and amplitude",
         ),
         Parameter.POSITION_GAIN: _estimate(cascade_fit, 0, Status.IDENTIFIED),
         Parameter.VELOCITY_GAIN: _estimate(
