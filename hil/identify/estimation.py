@@ -237,7 +237,9 @@ def fit_first_order_servo(
     """Kp of (4): the motor angle simulated from the goal, both high-passed (output error).
 
     The high-pass commutes with the linear model (4), so the fit is that of (4) itself on the
-    band the excitation covers, without the slow gravity lag the model does not have.
+    band the excitation covers, without the slow gravity lag the model does not have. Both
+    filters start from rest: the log must start with the motor at rest on its goal (as a run
+    does, holding where torque came on).
     """
     splits = [_split_index(log, options) for log in logs]
     filtered = [_high_pass(log, options.first_order_highpass_hz) for log in logs]
@@ -572,72 +574,11 @@ def identify(
     quality: list[FitQuality] = []
     traces: list[SignalTraces] = []
     for log in logs:
-        split = _split_index(log, options)
-        held = slice(split, len(log)) if split < len(log) - 10 else slice(1, len(log))
-        link = link_response(log, gear, known)
-        goal_hp, motor_hp = _high_pass(log, options.first_order_highpass_hz)
-        first_order = first_order_response(goal_hp, motor_hp[0], servo_kp, log.period_s)
-        simulated = simulate_joint(log, gear, servo, motor, known_for_model, options.physics_step_s)
-        _, predicted_current = _one_period_predictions(
-            _CascadeData(log, len(log), link_velocity_estimate(log)),
-            gear,
-            servo,
-            motor,
-            known_for_model,
-            options.physics_step_s,
+        log_quality, log_traces = _held_out_quality(
+            log, gear, servo_kp, servo, motor, known_for_model, options
         )
-        measured_deflection = log.link_angle_rad - log.motor_angle_rad
-        tag = "" if held.start == split else " (in-sample: nothing held out)"
-        quality += [
-            fit_quality(
-                "gear (1) from measured motor" + tag,
-                "deflection",
-                measured_deflection[held],
-                (link.angle_rad - log.motor_angle_rad)[held],
-            ),
-            fit_quality(
-                "first-order servo (4)" + tag,
-                "motor angle (high-passed)",
-                motor_hp[held],
-                first_order[held],
-            ),
-            fit_quality(
-                "cascade, one period ahead" + tag,
-                "motor current",
-                log.motor_current_a[held],
-                np.concatenate([[log.motor_current_a[0]], predicted_current])[held],
-            ),
-            fit_quality(
-                "whole joint, simulated" + tag,
-                "motor angle",
-                log.motor_angle_rad[held],
-                simulated.motor_angle_rad[held],
-            ),
-            fit_quality(
-                "whole joint, simulated" + tag,
-                "deflection",
-                measured_deflection[held],
-                (simulated.link_angle_rad - simulated.motor_angle_rad)[held],
-            ),
-            fit_quality(
-                "whole joint, simulated" + tag,
-                "motor current",
-                log.motor_current_a[held],
-                simulated.motor_current_a[held],
-            ),
-        ]
-        traces.append(
-            SignalTraces(
-                log=log,
-                holdout_start_index=split,
-                motor_angle_sim_rad=simulated.motor_angle_rad,
-                link_angle_sim_rad=simulated.link_angle_rad,
-                motor_current_sim_a=simulated.motor_current_a,
-                deflection_from_motor_rad=link.angle_rad - log.motor_angle_rad,
-                first_order_motor_rad=first_order,
-                first_order_measured_rad=motor_hp,
-            )
-        )
+        quality += log_quality
+        traces.append(log_traces)
     return IdentificationResult(
         parameters=parameters,
         quality=tuple(quality),
@@ -646,6 +587,80 @@ def identify(
         notes=tuple(notes),
         traces=tuple(traces),
     )
+
+
+def _held_out_quality(
+    log: JointLog,
+    gear: GearParams,
+    servo_kp: float,
+    servo: ServoParams,
+    motor: MotorParams,
+    known: KnownJointFigures,
+    options: IdentificationOptions,
+) -> tuple[list[FitQuality], SignalTraces]:
+    """Each model against the held-out samples of one log (all samples if none are held out),
+    and the signals for the figure."""
+    split = _split_index(log, options)
+    held = slice(split, len(log)) if split < len(log) - 10 else slice(1, len(log))
+    tag = "" if held.start == split else " (in-sample: nothing held out)"
+    link = link_response(log, gear, known)
+    goal_hp, motor_hp = _high_pass(log, options.first_order_highpass_hz)
+    first_order = first_order_response(goal_hp, motor_hp[0], servo_kp, log.period_s)
+    simulated = simulate_joint(log, gear, servo, motor, known, options.physics_step_s)
+    _, predicted_current = _one_period_predictions(
+        _CascadeData(log, len(log), link_velocity_estimate(log)),
+        gear,
+        servo,
+        motor,
+        known,
+        options.physics_step_s,
+    )
+    predicted_current = np.concatenate([[log.motor_current_a[0]], predicted_current])
+    deflection = log.link_angle_rad - log.motor_angle_rad
+    whole = "whole joint, simulated" + tag
+    quality = [
+        fit_quality(
+            "gear (1) from measured motor" + tag,
+            "deflection",
+            deflection[held],
+            (link.angle_rad - log.motor_angle_rad)[held],
+        ),
+        fit_quality(
+            "first-order servo (4)" + tag,
+            "motor angle (high-passed)",
+            motor_hp[held],
+            first_order[held],
+        ),
+        fit_quality(
+            "cascade, one period ahead" + tag,
+            "motor current",
+            log.motor_current_a[held],
+            predicted_current[held],
+        ),
+        fit_quality(
+            whole, "motor angle", log.motor_angle_rad[held], simulated.motor_angle_rad[held]
+        ),
+        fit_quality(
+            whole,
+            "deflection",
+            deflection[held],
+            (simulated.link_angle_rad - simulated.motor_angle_rad)[held],
+        ),
+        fit_quality(
+            whole, "motor current", log.motor_current_a[held], simulated.motor_current_a[held]
+        ),
+    ]
+    traces = SignalTraces(
+        log=log,
+        holdout_start_index=split,
+        motor_angle_sim_rad=simulated.motor_angle_rad,
+        link_angle_sim_rad=simulated.link_angle_rad,
+        motor_current_sim_a=simulated.motor_current_a,
+        deflection_from_motor_rad=link.angle_rad - log.motor_angle_rad,
+        first_order_motor_rad=first_order,
+        first_order_measured_rad=motor_hp,
+    )
+    return quality, traces
 
 
 def _caveats(
