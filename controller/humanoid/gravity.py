@@ -11,10 +11,10 @@ Sign convention (settled against the MuJoCo plant's static spring torques): tau_
 the gear spring must carry, tau_j = K (theta_m - theta_j) of (1), in each joint's own axis
 convention; f is the weight, pointing DOWN. With f pointing up (the support force the ground
 gives) or with J = d(p_com - p_i)/d theta the sign of every entry flips: that is the +33 N m
-where the plant's knee spring carries about -31 N m. Why this sign is right: summing (5) with
-fr + fl = f gives tau_g = (Jr^T fr + Jl^T fl)_legs - J_com^T f, where -J_com^T f = m g dz_com/d theta
-is the generalised gravity g(theta) of (3) and (Ji^T fi) removes what the ground carries: it is
-the static balance S^T tau_j = g(theta) + Jc^T fc of (3) with the contact forces fc = -fi.
+where the plant's knee spring carries about -31 N m. Why this sign is right: with fr + fl = f,
+(5) reads tau_g = (Jr^T fr + Jl^T fl)_legs - (J_com^T f)_legs, where -J_com^T f = m g dz_com/dtheta
+is the generalised gravity g(theta) of (3); so S^T tau_g = g(theta) + Jc^T fc, the static
+balance of (3) with fc = (fr, fl), the forces the feet press onto the ground.
 
 Contact points: (5) with point forces is the exact static balance only if the forces' centre of
 pressure lies under the CoM. We therefore apply each foot's force at its sole centre shifted
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from controller.gravity import STANDARD_GRAVITY_M_S2, GravityModel, support_force_split
+from controller.gravity import STANDARD_GRAVITY_M_S2, GravityModel
 from controller.humanoid.leg_model import N_LEG_JOINTS, LegModel
 from controller.humanoid.support import SupportState
 
@@ -78,81 +78,113 @@ class HumanoidLegGravity(GravityModel):
             raise ValueError(f"total_mass_kg must be finite and > 0, got {total_mass_kg}")
         self.total_mass_kg = mass
         self.weight_n = np.array([0.0, 0.0, -mass * gravity_m_s2])
-        self.base_rotation: np.ndarray | None = None
+        self._base_rotation: np.ndarray | None = None
+        self._base_key: bytes | None = None
         self.last_split: SupportForces | None = None
+        self._cache_key: tuple | None = None
+        self._cache_torque = np.zeros(N_LEG_JOINTS)
 
     def set_support(self, support: SupportState) -> None:
         self.support = SupportState(support)
 
+    @property
+    def base_rotation(self) -> np.ndarray | None:
+        """The measured pelvis orientation in use, or None (from the flat support sole)."""
+        return None if self._base_rotation is None else self._base_rotation.copy()
+
     def set_base_rotation(self, rotation: np.ndarray | None) -> None:
         """A measured pelvis orientation (world <- pelvis), or None: from the flat support sole."""
-        self.base_rotation = None if rotation is None else np.array(rotation, dtype=float)
+        if rotation is None:
+            self._base_rotation = self._base_key = None
+            return
+        self._base_rotation = np.array(rotation, dtype=float).reshape(3, 3)
+        self._base_key = self._base_rotation.tobytes()
 
     def pelvis_rotation(self, link_angle_rad: np.ndarray) -> np.ndarray:
         """The pelvis orientation tau_g is evaluated at (see the module docstring)."""
-        if self.base_rotation is not None:
-            return self.base_rotation
+        lm = self.leg_model
+        lm.update_kinematics(lm.configuration(np.asarray(link_angle_rad, dtype=float)))
+        return self._pelvis_rotation_from_kinematics()
+
+    def _pelvis_rotation_from_kinematics(self) -> np.ndarray:
+        """world <- pelvis, from the sole placements computed with the pelvis at the identity."""
+        if self._base_rotation is not None:
+            return self._base_rotation
         lm = self.leg_model
         feet = self.support.feet
-        if len(feet) == 1:
-            return lm.base_rotation_for_flat_sole(link_angle_rad, feet[0])
-        left = lm.base_rotation_for_flat_sole(link_angle_rad, 0)
-        right = lm.base_rotation_for_flat_sole(link_angle_rad, 1)
-        return left @ pin.exp3(0.5 * pin.log3(left.T @ right))
+        sole = lm.sole_placement(feet[0]).rotation  # pelvis <- sole
+        if len(feet) == 2:
+            other = lm.sole_placement(feet[1]).rotation
+            sole = sole @ pin.exp3(0.5 * pin.log3(sole.T @ other))
+        return sole.T  # the sole flat: world <- sole = identity
 
     def gravity_torque(self, link_angle_rad: np.ndarray) -> np.ndarray:
+        """tau_g (5) at these link angles [N m], lab leg order.
+
+        Evaluated with the pelvis at the identity and the weight expressed in pelvis
+        coordinates (one kinematics pass; the torques do not depend on where the robot is):
+        J_world = R J_pelvis, so J_world^T f = J_pelvis^T (R^T f). Since fr + fl = f,
+        (5) = sum_i J_i^T f_i - J_com^T f, and the force f_i at the point p_i of foot i is the
+        wrench [f_i; (p_i - o_i) x f_i] at that foot's sole frame origin o_i, so
+        J_i^T f_i = J6_i^T [f_i; (p_i - o_i) x f_i] with the sole frame's 6-D Jacobian.
+        """
         angles = np.asarray(link_angle_rad, dtype=float)
         if angles.shape != (N_LEG_JOINTS,):
             raise ValueError(f"link_angle_rad must have {N_LEG_JOINTS} entries, got {angles.shape}")
+        key = (angles.tobytes(), self.support, self._base_key)
+        if key == self._cache_key:  # a held reference (standing): no kinematics again
+            return self._cache_torque.copy()
         lm = self.leg_model
         model, data = lm.model, lm.data
-        q = lm.configuration(angles, base_rotation=self.pelvis_rotation(angles))
-        lm.update_jacobians(q)
-        com = data.com[0].copy()
-        jacobian_com = data.Jcom
-        split = self.split(com)
-        forces = (split.left_force_n, split.right_force_n)
-        points = (split.left_point_m, split.right_point_m)
-        torque = np.zeros(model.nv)
-        for side in (0, 1):
-            if not np.any(forces[side]):
-                # (J_i - J_com)^T 0 = 0; the J_com part of the other foot's term still counts
+        lm.update_jacobians(lm.configuration(angles))
+        rotation = self._pelvis_rotation_from_kinematics()
+        weight = rotation.T @ self.weight_n
+        com = data.com[0]
+        mu, left_point, right_point = self._split(com, weight)
+        legs = lm.leg_v_index
+        torque = -(data.Jcom[:, legs].T @ weight)
+        for side, share, point in ((0, 1.0 - mu, left_point), (1, mu, right_point)):
+            if share == 0.0:
                 continue
-            torque += (self._point_jacobian(side, points[side]) - jacobian_com).T @ forces[side]
-        self.last_split = split
-        return torque[lm.leg_v_index]
+            frame_id = lm.sole_frame_ids[side]
+            jacobian = pin.getFrameJacobian(
+                model, data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            )
+            force = share * weight
+            wrench = np.concatenate((force, _cross(point - data.oMf[frame_id].translation, force)))
+            torque += jacobian[:, legs].T @ wrench
+        self.last_split = SupportForces(
+            mu=mu,
+            left_force_n=(1.0 - mu) * self.weight_n,
+            right_force_n=mu * self.weight_n,
+            left_point_m=rotation @ left_point,
+            right_point_m=rotation @ right_point,
+            com_m=rotation @ com,
+        )
+        self._cache_key, self._cache_torque = key, torque.copy()
+        return torque
 
-    def split(self, com_m: np.ndarray) -> SupportForces:
-        """(6)-(7) with the contact points of the module docstring (after update_kinematics)."""
+    def _split(self, com: np.ndarray, weight: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """(6)-(7) and the contact points of the module docstring, in pelvis coordinates:
+        (mu, left point, right point); "horizontal" = perpendicular to the weight."""
         lm = self.leg_model
-        left = lm.sole_placement(0).translation.copy()
-        right = lm.sole_placement(1).translation.copy()
+        left = lm.sole_placement(0).translation
+        right = lm.sole_placement(1).translation
         if self.support is SupportState.LEFT:
             mu = 0.0
         elif self.support is SupportState.RIGHT:
             mu = 1.0
         else:
-            right_force, _ = support_force_split(com_m, left, right, 1.0)
-            mu = float(right_force)
-        on_line = left + mu * (right - left)
-        offset = com_m - on_line
-        offset[2] = 0.0
-        return SupportForces(
-            mu=mu,
-            left_force_n=(1.0 - mu) * self.weight_n,
-            right_force_n=mu * self.weight_n,
-            left_point_m=left + offset,
-            right_point_m=right + offset,
-            com_m=com_m,
-        )
+            # (7) as controller.gravity.support_force_split computes it, inline (hot path)
+            across = right - left
+            mu = min(1.0, max(0.0, float((com - left) @ across / (across @ across))))
+        offset = com - (left + mu * (right - left))
+        offset -= (offset @ weight) / (weight @ weight) * weight
+        return mu, left + offset, right + offset
 
-    def _point_jacobian(self, side: int, point_m: np.ndarray) -> np.ndarray:
-        """3 x nv Jacobian of the foot-fixed point now at `point_m` (world), world axes."""
-        lm = self.leg_model
-        frame_id = lm.sole_frame_ids[side]
-        jacobian = pin.getFrameJacobian(
-            lm.model, lm.data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        )
-        lever = point_m - lm.data.oMf[frame_id].translation
-        # v_point = v_frame + omega x lever = v_frame - lever x omega
-        return jacobian[:3] - pin.skew(lever) @ jacobian[3:]
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for 3-vectors (np.cross is slow on tiny arrays)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )

@@ -35,9 +35,7 @@ LEFT_LEG_JOINT_NAMES: tuple[str, ...] = (
     "L_AnklePitch",
     "L_AnkleRoll",
 )
-RIGHT_LEG_JOINT_NAMES: tuple[str, ...] = tuple(
-    "R" + name[1:] for name in LEFT_LEG_JOINT_NAMES
-)
+RIGHT_LEG_JOINT_NAMES: tuple[str, ...] = tuple("R" + name[1:] for name in LEFT_LEG_JOINT_NAMES)
 LEG_JOINT_NAMES: tuple[str, ...] = LEFT_LEG_JOINT_NAMES + RIGHT_LEG_JOINT_NAMES
 N_LEG_JOINTS = len(LEG_JOINT_NAMES)
 FOOT_LINK_NAMES: tuple[str, str] = ("L_AnkleRoll_Link", "R_AnkleRoll_Link")
@@ -116,9 +114,7 @@ def sole_boxes_from_urdf(urdf_text: str) -> tuple[SoleBox, SoleBox]:
         if np.any(np.abs(np.fromstring(rpy, sep=" ")) > 0):
             raise ValueError(f"{link_name}: a rotated sole box is not supported")
         size = collision.find("geometry/box").get("size")
-        boxes.append(
-            SoleBox(link_name, np.fromstring(xyz, sep=" "), np.fromstring(size, sep=" "))
-        )
+        boxes.append(SoleBox(link_name, np.fromstring(xyz, sep=" "), np.fromstring(size, sep=" ")))
     return boxes[0], boxes[1]
 
 
@@ -159,8 +155,9 @@ class LegModel:
             parent_frame = model.getFrameId(box.link_name)
             frame = model.frames[parent_frame]
             placement = frame.placement * pin.SE3(np.eye(3), box.bottom_centre_m)
-            model.addFrame(pin.Frame(side, frame.parentJoint, parent_frame, placement,
-                                     pin.FrameType.OP_FRAME))
+            model.addFrame(
+                pin.Frame(side, frame.parentJoint, parent_frame, placement, pin.FrameType.OP_FRAME)
+            )
         self.model = model
         self.data = model.createData()
         self.sole_boxes = sole_boxes_from_urdf(urdf_text)
@@ -195,8 +192,10 @@ class LegModel:
             raise ValueError(f"leg_angles_rad must have {N_LEG_JOINTS} entries, got {angles.shape}")
         q = np.zeros(self.nq)
         q[:3] = base_position_m
-        rotation = np.eye(3) if base_rotation is None else np.asarray(base_rotation, dtype=float)
-        q[3:7] = pin.Quaternion(rotation).coeffs()  # x y z w
+        if base_rotation is None:
+            q[6] = 1.0  # identity quaternion, x y z w
+        else:
+            q[3:7] = pin.Quaternion(np.asarray(base_rotation, dtype=float)).coeffs()
         q[self.leg_q_index] = angles
         return q
 

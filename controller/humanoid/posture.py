@@ -111,3 +111,22 @@ LAB_WALK_INIT_LEG_ANGLES_RAD: tuple[float, ...] = (
 
 if len(LAB_WALK_INIT_LEG_ANGLES_RAD) != N_LEG_JOINTS:  # pragma: no cover - a typo guard
     raise AssertionError("LAB_WALK_INIT_LEG_ANGLES_RAD needs 12 entries")
+
+# The walking-ready posture: the lab's "Init Walking" idea (bent knees, feet flat side by side,
+# pelvis upright at the same height) with the CoM put over the middle of the two sole centres,
+# as the start of a walk needs it (the lab's own angles leave it 0.040 m ahead). Solved with
+# `solve_posture` from this target; the test suite re-solves it and checks every constraint.
+WALKING_READY_TARGET = PostureTarget(
+    left_sole_m=(0.0, 0.1278, 0.0),  # soles 0.2556 m apart, as in the lab's posture
+    right_sole_m=(0.0, -0.1278, 0.0),
+    com_xy_m=(0.0, 0.0),
+    pelvis_height_m=0.87,  # the lab's posture: 0.8705 m
+)
+# Lab order, rad. In degrees: L 0, 1.820, -6.569, 42.225, -35.656, -1.820;
+# R 0, -2.178, 6.546, -42.179, 35.633, 2.178 (the right leg's pitch axes are -y; the small
+# left/right difference comes from the published masses: thighs' CoM x, hands). CoM 0.828 m
+# above the ground, pelvis 0.034 m behind the sole centres.
+WALKING_READY_LEG_ANGLES_RAD: tuple[float, ...] = (
+    0.0, 0.0317718378, -0.1146555027, 0.7369626642, -0.6223071615, -0.0317718378,
+    0.0, -0.0380199914, 0.1142455437, -0.7361605913, 0.6219150476, 0.0380199914,
+)  # fmt: skip

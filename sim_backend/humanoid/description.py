@@ -72,6 +72,9 @@ class RobotDescription:
         return sum(link.inertial.mass_kg for link in self.links.values() if link.inertial)
 
 
+_INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
 def rotation_from_rpy(rpy: np.ndarray) -> np.ndarray:
     """URDF rpy (fixed axes X, Y, Z) -> rotation matrix Rz(y) Ry(p) Rx(r)."""
     roll, pitch, yaw = rpy
@@ -106,12 +109,12 @@ def parse_urdf(urdf_text: str) -> RobotDescription:
             rotation = rotation_from_rpy(_vector(origin, "rpy", "0 0 0"))
             tensor = inertial_element.find("inertia")
             assert tensor is not None, f"link {element.get('name')}: inertial without inertia"
-            get = lambda key: float(tensor.get(key, "0"))  # noqa: E731
+            moments = {key: float(tensor.get(key, "0")) for key in _INERTIA_KEYS}
             local = np.array(
                 [
-                    [get("ixx"), get("ixy"), get("ixz")],
-                    [get("ixy"), get("iyy"), get("iyz")],
-                    [get("ixz"), get("iyz"), get("izz")],
+                    [moments["ixx"], moments["ixy"], moments["ixz"]],
+                    [moments["ixy"], moments["iyy"], moments["iyz"]],
+                    [moments["ixz"], moments["iyz"], moments["izz"]],
                 ]
             )
             mass = inertial_element.find("mass")

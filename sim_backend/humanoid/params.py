@@ -135,8 +135,10 @@ class RobotTruthParams:
             ):
                 raise ValueError(f"{name} must be positive, got {values}")
             object.__setattr__(self, name, values)
-        servos = (self.servo,) * N_LEG_JOINTS if isinstance(self.servo, H54ServoParams) else (
-            tuple(self.servo)
+        servos = (
+            (self.servo,) * N_LEG_JOINTS
+            if isinstance(self.servo, H54ServoParams)
+            else (tuple(self.servo))
         )
         if len(servos) != N_LEG_JOINTS:
             raise ValueError(f"servo needs one H54ServoParams or {N_LEG_JOINTS}")
