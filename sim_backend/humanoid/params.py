@@ -61,6 +61,21 @@ LAB_WALK_INIT_UPPER_BODY_RAD: Mapping[str, float] = {
 LAB_KNEE_POSITION_GAIN_REGISTER = 58
 
 
+# Torque Limit (30, EEPROM) of the leg actuators. The e-Manual's initial value 620 (x 16.11328 mA
+# = 10.0 A, x 4.81 N m/A = 48 N m at the output) does not hold DYROS-JET on one leg with the
+# published figures: in single support the stance hip roll and knee carry ~62 N m (more while the
+# servo lags), the cap clips them and the overload protection (90 % of the cap held for 1.5 s)
+# shuts them down (tests/sim_backend/test_humanoid_robot.py shows it). The lab's configuration is
+# not published. ASSUMPTION: the emulated robot's legs are configured to 1240 (20.0 A, 96 N m),
+# within the item's range 0..1860; a host configuration for DYROS-JET should write the same.
+DYROS_JET_LEG_TORQUE_LIMIT_REGISTER = 1240
+
+
+def leg_eeprom_overrides() -> dict[str, int]:
+    """EEPROM items of each emulated leg actuator as the DYROS-JET emulator configures them."""
+    return {"Torque Limit": DYROS_JET_LEG_TORQUE_LIMIT_REGISTER}
+
+
 def _per_joint(value: float | tuple[float, ...], name: str) -> tuple[float, ...]:
     values = (float(value),) * N_LEG_JOINTS if isinstance(value, int | float) else tuple(value)
     if len(values) != N_LEG_JOINTS or not all(math.isfinite(v) for v in values):
