@@ -80,8 +80,13 @@ class HumanoidLegGravity(GravityModel):
         self.weight_n = np.array([0.0, 0.0, -mass * gravity_m_s2])
         self._base_rotation: np.ndarray | None = None
         self._base_key: bytes | None = None
-        self.last_split: SupportForces | None = None
+        self._split: tuple | None = None
         self._cache_key: tuple | None = None
+        self._q = model.configuration(np.zeros(N_LEG_JOINTS))  # pelvis at the identity
+        self._wrench = np.zeros(6)
+        legs = model.leg_v_index
+        contiguous = np.array_equal(legs, np.arange(legs[0], legs[0] + N_LEG_JOINTS))
+        self._legs = slice(int(legs[0]), int(legs[0]) + N_LEG_JOINTS) if contiguous else legs
         self._cache_torque = np.zeros(N_LEG_JOINTS)
 
     def set_support(self, support: SupportState) -> None:
@@ -112,21 +117,22 @@ class HumanoidLegGravity(GravityModel):
             return self._base_rotation
         lm = self.leg_model
         feet = self.support.feet
-        sole = lm.sole_placement(feet[0]).rotation  # pelvis <- sole
+        sole = lm.data.oMf[lm.sole_frame_ids[feet[0]]].rotation  # pelvis <- sole
         if len(feet) == 2:
-            other = lm.sole_placement(feet[1]).rotation
+            other = lm.data.oMf[lm.sole_frame_ids[feet[1]]].rotation
             sole = sole @ pin.exp3(0.5 * pin.log3(sole.T @ other))
         return sole.T  # the sole flat: world <- sole = identity
 
     def gravity_torque(self, link_angle_rad: np.ndarray) -> np.ndarray:
         """tau_g (5) at these link angles [N m], lab leg order.
 
-        Evaluated with the pelvis at the identity and the weight expressed in pelvis
+        Evaluated with the pelvis at the identity and the weight w expressed in pelvis
         coordinates (one kinematics pass; the torques do not depend on where the robot is):
-        J_world = R J_pelvis, so J_world^T f = J_pelvis^T (R^T f). Since fr + fl = f,
-        (5) = sum_i J_i^T f_i - J_com^T f, and the force f_i at the point p_i of foot i is the
-        wrench [f_i; (p_i - o_i) x f_i] at that foot's sole frame origin o_i, so
-        J_i^T f_i = J6_i^T [f_i; (p_i - o_i) x f_i] with the sole frame's 6-D Jacobian.
+        J_world = R J_pelvis, so J_world^T f = J_pelvis^T (R^T f). Since fr + fl = f = w,
+        (5) = sum_i J_i^T f_i - J_com^T w. Both contact points are their sole centres o_i
+        shifted by the same horizontal offset d (module docstring), so the force f_i = s_i w
+        (s = 1 - mu, mu) at o_i + d is the wrench s_i [w; d x w] at the sole frame, and
+        sum_i J_i^T f_i = (s_l J6_l + s_r J6_r)^T [w; d x w] with the soles' 6-D Jacobians.
         """
         angles = np.asarray(link_angle_rad, dtype=float)
         if angles.shape != (N_LEG_JOINTS,):
@@ -136,40 +142,16 @@ class HumanoidLegGravity(GravityModel):
             return self._cache_torque.copy()
         lm = self.leg_model
         model, data = lm.model, lm.data
-        lm.update_jacobians(lm.configuration(angles))
+        q = self._q
+        q[lm.leg_q_index] = angles
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        pin.jacobianCenterOfMass(model, data, True)
         rotation = self._pelvis_rotation_from_kinematics()
         weight = rotation.T @ self.weight_n
         com = data.com[0]
-        mu, left_point, right_point = self._split(com, weight)
-        legs = lm.leg_v_index
-        torque = -(data.Jcom[:, legs].T @ weight)
-        for side, share, point in ((0, 1.0 - mu, left_point), (1, mu, right_point)):
-            if share == 0.0:
-                continue
-            frame_id = lm.sole_frame_ids[side]
-            jacobian = pin.getFrameJacobian(
-                model, data, frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-            )
-            force = share * weight
-            wrench = np.concatenate((force, _cross(point - data.oMf[frame_id].translation, force)))
-            torque += jacobian[:, legs].T @ wrench
-        self.last_split = SupportForces(
-            mu=mu,
-            left_force_n=(1.0 - mu) * self.weight_n,
-            right_force_n=mu * self.weight_n,
-            left_point_m=rotation @ left_point,
-            right_point_m=rotation @ right_point,
-            com_m=rotation @ com,
-        )
-        self._cache_key, self._cache_torque = key, torque.copy()
-        return torque
-
-    def _split(self, com: np.ndarray, weight: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """(6)-(7) and the contact points of the module docstring, in pelvis coordinates:
-        (mu, left point, right point); "horizontal" = perpendicular to the weight."""
-        lm = self.leg_model
-        left = lm.sole_placement(0).translation
-        right = lm.sole_placement(1).translation
+        left = data.oMf[lm.sole_frame_ids[0]].translation
+        right = data.oMf[lm.sole_frame_ids[1]].translation
         if self.support is SupportState.LEFT:
             mu = 0.0
         elif self.support is SupportState.RIGHT:
@@ -179,8 +161,37 @@ class HumanoidLegGravity(GravityModel):
             across = right - left
             mu = min(1.0, max(0.0, float((com - left) @ across / (across @ across))))
         offset = com - (left + mu * (right - left))
-        offset -= (offset @ weight) / (weight @ weight) * weight
-        return mu, left + offset, right + offset
+        offset -= (offset @ weight) / (weight @ weight) * weight  # horizontal: _|_ to w
+        wrench = self._wrench
+        wrench[:3] = weight
+        wrench[3:] = _cross(offset, weight)
+        legs = self._legs
+        jacobians = 0.0
+        for side, share in ((0, 1.0 - mu), (1, mu)):
+            if share != 0.0:
+                jacobian = pin.getFrameJacobian(
+                    model, data, lm.sole_frame_ids[side], pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+                )
+                jacobians = jacobians + share * jacobian[:, legs]
+        torque = jacobians.T @ wrench - data.Jcom[:, legs].T @ weight
+        self._split = (mu, left.copy(), right.copy(), offset, com.copy(), rotation.copy())
+        self._cache_key, self._cache_torque = key, torque.copy()
+        return torque
+
+    @property
+    def last_split(self) -> SupportForces | None:
+        """The split (6)-(7) of the last gravity_torque call, world frame (None before one)."""
+        if self._split is None:
+            return None
+        mu, left, right, offset, com, rotation = self._split
+        return SupportForces(
+            mu=mu,
+            left_force_n=(1.0 - mu) * self.weight_n,
+            right_force_n=mu * self.weight_n,
+            left_point_m=rotation @ (left + offset),
+            right_point_m=rotation @ (right + offset),
+            com_m=rotation @ com,
+        )
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
