@@ -614,54 +614,46 @@ class LinkEncoderReader:
             )
 
     def _check_force_sensor(self, device: _Device) -> None:
-        device_type, profile, _ = self._read_profile(device)
-        if profile != CIA404_MEASURING_DEVICE_PROFILE:
-            raise self._error(
-                device,
-                f"device type 0x{device_type:08X} is profile CiA {profile}, not a CiA 404 "
-                "measuring device (expected low 16 bits 0x0194)",
-            )
-        unit = self._sdo_read(device, 0x6131, 1, "AI physical unit 0x6131:01")
-        if (unit >> 16) & 0xFF != CIA303_NEWTON:
-            raise self._error(
-                device,
-                f"physical unit 0x{unit:08X} (0x6131:01) is not newton (CiA 303-2 unit code "
-                "0x21 in byte 2)",
-            )
-        prefix_exponent = int.from_bytes(bytes([unit >> 24]), "little", signed=True)
-        decimal_digits = self._sdo_read(device, 0x6132, 1, "AI decimal digits 0x6132:01")
-        device.newtons_per_count = 10.0 ** (prefix_exponent - decimal_digits)
+        self._require_measuring_device(device)
+        device.newtons_per_count = self._si_per_count(device, 1, CIA303_NEWTON, "newton")
 
     def _check_force_torque_sensor(self, device: _Device) -> None:
         """CiA 404 with six channels: newton on 1-3, newton metre on 4-6; their resolutions."""
-        device_type, profile, _ = self._read_profile(device)
-        if profile != CIA404_MEASURING_DEVICE_PROFILE:
-            raise self._error(
-                device,
-                f"device type 0x{device_type:08X} is profile CiA {profile}, not a CiA 404 "
-                "measuring device (expected low 16 bits 0x0194)",
-            )
+        self._require_measuring_device(device)
         channels = self._sdo_read(device, 0x6131, 0, "number of AI channels 0x6131:00")
         if channels < _FORCE_TORQUE_CHANNELS:
             raise self._error(
                 device, f"has {channels} analogue inputs (0x6131:00); a force/torque sensor has 6"
             )
-        si_per_count = np.zeros(_FORCE_TORQUE_CHANNELS)
-        for channel in range(1, _FORCE_TORQUE_CHANNELS + 1):
-            unit = self._sdo_read(device, 0x6131, channel, f"AI physical unit 0x6131:{channel:02X}")
-            expected = CIA303_NEWTON if channel <= 3 else CIA303_NEWTON_METRE
-            if (unit >> 16) & 0xFF != expected:
-                raise self._error(
-                    device,
-                    f"channel {channel} unit 0x{unit:08X} (0x6131:{channel:02X}) is not "
-                    f"{'newton (0x21)' if channel <= 3 else 'newton metre (0x23)'} in byte 2",
-                )
-            prefix_exponent = int.from_bytes(bytes([unit >> 24]), "little", signed=True)
-            digits = self._sdo_read(
-                device, 0x6132, channel, f"AI decimal digits 0x6132:{channel:02X}"
+        device.si_per_count = np.array(
+            [self._si_per_count(device, channel, CIA303_NEWTON, "newton") for channel in (1, 2, 3)]
+            + [
+                self._si_per_count(device, channel, CIA303_NEWTON_METRE, "newton metre")
+                for channel in (4, 5, 6)
+            ]
+        )
+
+    def _require_measuring_device(self, device: _Device) -> None:
+        device_type, profile, _ = self._read_profile(device)
+        if profile != CIA404_MEASURING_DEVICE_PROFILE:
+            raise self._error(
+                device,
+                f"device type 0x{device_type:08X} is profile CiA {profile}, not a CiA 404 "
+                "measuring device (expected low 16 bits 0x0194)",
             )
-            si_per_count[channel - 1] = 10.0 ** (prefix_exponent - digits)
-        device.si_per_count = si_per_count
+
+    def _si_per_count(self, device: _Device, channel: int, unit_code: int, unit: str) -> float:
+        """One analogue input's resolution from 0x6131 (unit, prefix) and 0x6132 (digits)."""
+        code = self._sdo_read(device, 0x6131, channel, f"AI physical unit 0x6131:{channel:02X}")
+        if (code >> 16) & 0xFF != unit_code:
+            raise self._error(
+                device,
+                f"physical unit 0x{code:08X} (0x6131:{channel:02X}) is not {unit} (CiA 303-2 "
+                f"unit code 0x{unit_code:02X} in byte 2)",
+            )
+        prefix_exponent = int.from_bytes(bytes([code >> 24]), "little", signed=True)
+        digits = self._sdo_read(device, 0x6132, channel, f"AI decimal digits 0x6132:{channel:02X}")
+        return 10.0 ** (prefix_exponent - digits)
 
     def _configure_tpdo(self, index: int, number: int, expected: tuple[int, ...]) -> int:
         """Check TPDO `number`'s mapping starts with `expected`, enable the TPDO if its COB-ID

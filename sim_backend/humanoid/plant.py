@@ -207,19 +207,14 @@ class HumanoidPlant:
     def set_servos(
         self, velocity_commands_rad_s: np.ndarray, torque_limits_nm: np.ndarray, kv: np.ndarray
     ) -> None:
-        """set_servo and set_velocity_gain for all 12 joints at once (arrays, lab order)."""
+        """set_servo for all 12 joints at once, with the velocity P gains kv (implicit actuator
+        force kv (ctrl - qvel)); arrays in the lab order."""
         actuators = self._actuator
         self.model.actuator_forcerange[actuators, 0] = -torque_limits_nm
         self.model.actuator_forcerange[actuators, 1] = torque_limits_nm
         self.model.actuator_gainprm[actuators, 0] = kv
         self.model.actuator_biasprm[actuators, 2] = -kv
         self.data.ctrl[actuators] = velocity_commands_rad_s
-
-    def set_velocity_gain(self, joint: int, kv_nms_per_rad: float) -> None:
-        """The servo's velocity P gain kv (implicit actuator force kv (ctrl - qvel))."""
-        actuator = self._actuator[joint]
-        self.model.actuator_gainprm[actuator, 0] = kv_nms_per_rad
-        self.model.actuator_biasprm[actuator, 2] = -kv_nms_per_rad
 
     def set_torque_off(self, joint: int, brake_damping_nms_per_rad: float) -> None:
         """Motor output off; the dynamic brake (shorted windings) damps the motor side."""
