@@ -164,3 +164,14 @@ def test_support_switch_with_the_same_reference(model: LegModel) -> None:
     assert np.array_equal(again, left)
     again[:] = 0.0  # the caller owns the returned array; the cache keeps its own copy
     assert np.array_equal(gc.gravity_torque(READY), left)
+
+
+def test_half_rotation_matches_pinocchio() -> None:
+    from controller.humanoid.gravity import _half_rotation
+
+    rng = np.random.default_rng(3)
+    for angle in (1e-9, 1e-4, 0.3, 2.5, 3.1):  # below pi, where the rotation vector is unique
+        direction = rng.normal(0, 1, 3)
+        vector = angle * direction / np.linalg.norm(direction)
+        rotation = pin.exp3(vector)
+        assert np.allclose(_half_rotation(rotation), pin.exp3(0.5 * vector), atol=1e-12)
