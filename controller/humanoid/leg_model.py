@@ -40,6 +40,9 @@ LEG_JOINT_NAMES: tuple[str, ...] = LEFT_LEG_JOINT_NAMES + RIGHT_LEG_JOINT_NAMES
 N_LEG_JOINTS = len(LEG_JOINT_NAMES)
 FOOT_LINK_NAMES: tuple[str, str] = ("L_AnkleRoll_Link", "R_AnkleRoll_Link")
 SOLE_FRAME_NAMES: tuple[str, str] = ("L_sole", "R_sole")
+# The feet's force/torque sensors sit at the ankle axis, in the *_AnkleRoll_Link frame (where the
+# lab's MuJoCo model has its foot F/T sites; the emulated robot measures there).
+FT_SENSOR_FRAME_NAMES: tuple[str, str] = FOOT_LINK_NAMES
 FLOATING_JOINT_NAME = "virtual"
 
 # The lab's "Init Walking" posture for the upper body (psh117/dyros_jet, dyros_jet_gui
@@ -162,6 +165,7 @@ class LegModel:
         self.data = model.createData()
         self.sole_boxes = sole_boxes_from_urdf(urdf_text)
         self.sole_frame_ids = tuple(model.getFrameId(name) for name in SOLE_FRAME_NAMES)
+        self.ft_sensor_frame_ids = tuple(model.getFrameId(name) for name in FT_SENSOR_FRAME_NAMES)
         # Index maps between the lab's leg order and pinocchio's q / v vectors.
         self.leg_q_index = np.array(
             [model.joints[model.getJointId(name)].idx_q for name in LEG_JOINT_NAMES]
@@ -219,6 +223,11 @@ class LegModel:
     def sole_placement(self, side: int) -> pin.SE3:
         """World placement of the sole frame (0 left, 1 right) after update_kinematics."""
         return self.data.oMf[self.sole_frame_ids[side]]
+
+    def ft_sensor_placement(self, side: int) -> pin.SE3:
+        """World placement of foot `side`'s force/torque sensor frame after update_kinematics
+        (e.g. for `zmp_from_foot_wrenches`, with q from `standing_configuration`)."""
+        return self.data.oMf[self.ft_sensor_frame_ids[side]]
 
     def centre_of_mass(self, q: np.ndarray) -> np.ndarray:
         """World position of the whole robot's centre of mass [m] (upper body included)."""

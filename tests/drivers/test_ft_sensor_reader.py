@@ -204,7 +204,12 @@ def test_zmp_of_the_standing_robot_through_the_bus(rigs: list[Rig]) -> None:
     (controller) equals the CoM's ground projection of the robot standing still."""
     from pathlib import Path
 
-    from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD, FootWrench, zmp_from_foot_wrenches
+    from controller.humanoid import (
+        WALKING_READY_LEG_ANGLES_RAD,
+        FootWrench,
+        LegModel,
+        zmp_from_foot_wrenches,
+    )
     from sim_backend.dynamixel.device import H54Device
     from sim_backend.humanoid.robot import EmulatedRobot
 
@@ -233,5 +238,22 @@ def test_zmp_of_the_standing_robot_through_the_bus(rigs: list[Rig]) -> None:
         feet.append(FootWrench(wrench.force_n, wrench.torque_nm, position, rotation))
     zmp = zmp_from_foot_wrenches(feet)
     assert np.allclose(zmp, robot.plant.centre_of_mass_m[:2], atol=2e-3)
+    # as the host computes it: sensor poses from the link angles, the left sole flat at the origin
+    model = LegModel(urdf)
+    q = model.standing_configuration(robot.plant.link_angle_rad, side=0)
+    model.update_kinematics(q)
+    host_feet = [
+        FootWrench(
+            wrench.force_n,
+            wrench.torque_nm,
+            model.ft_sensor_placement(side).translation,
+            model.ft_sensor_placement(side).rotation,
+        )
+        for side, wrench in enumerate(reading.wrenches)
+    ]
+    position, rotation = robot.plant.ft_sensor_pose(0)
+    left_sole = position + rotation @ [0.01, 0.0, -0.105]  # the sole's centre (the URDF's box)
+    host_zmp = zmp_from_foot_wrenches(host_feet) + left_sole[:2]
+    assert np.allclose(host_zmp, zmp, atol=2e-3)
     total = sum(w.force_n[2] for w in reading.wrenches)
     assert total == pytest.approx(49.95809 * 9.81, rel=3e-3)
