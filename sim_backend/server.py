@@ -298,7 +298,7 @@ class Emulator:
         self.slcan.close()
 
 
-def _link_angle_source(joint: EmulatedJoint, direction: int, offset_rad: float):  # noqa: ANN202
+def _link_angle_source(joint: EmulatedJoint, direction: int, offset_rad: float):
     """The encoder's own angle (before the node's direction): undone by the driver's offset."""
     plant = joint.plant
     # The node multiplies by its direction; the driver computes direction * (reading - offset).

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from hil.config import Config
-from hil.experiments import CONTACT, IMPACT, Experiment
+from hil.experiments import CONTACT, Experiment
 from hil.loop import LockstepClock, RunRequest, run_experiment
 from hil.output import load_run
 from hil.vocabulary import ControllerChoice, ControllerKind

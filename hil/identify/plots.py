@@ -17,6 +17,23 @@ def _shade_holdout(axes, time_s: np.ndarray, start: int) -> None:
             ax.axvspan(time_s[start], time_s[-1], color="0.9", zorder=0, lw=0)
 
 
+def _title(result: IdentificationResult, source: str) -> str:
+    p = result.parameters
+
+    def show(parameter: Parameter, fmt: str) -> str:
+        e = p[parameter]
+        return f"{fmt.format(e.value)} [{fmt.format(e.low)}, {fmt.format(e.high)}]"
+
+    return (
+        f"{source}: K = {show(Parameter.GEAR_STIFFNESS, '{:.0f}')} N m/rad, "
+        f"D = {show(Parameter.GEAR_DAMPING, '{:.1f}')} N m s/rad, "
+        f"Kp(4) = {show(Parameter.SERVO_KP, '{:.2f}')} 1/s\n"
+        f"Kpp = {show(Parameter.POSITION_GAIN, '{:.2f}')} 1/s, "
+        f"kv = {show(Parameter.VELOCITY_GAIN, '{:.1f}')} N m s/rad, "
+        f"Ti = {show(Parameter.VELOCITY_INTEGRAL_TIME, '{:.1f}')} s (95 %)"
+    )
+
+
 def write_identification_figure(
     result: IdentificationResult, path: str | Path, log_index: int = 0
 ) -> Path:
@@ -81,21 +98,7 @@ def write_identification_figure(
         ax.legend(loc="upper left", fontsize=7, ncol=3)
         ax.grid(True, lw=0.3)
 
-    p = result.parameters
-
-    def show(parameter: Parameter, fmt: str) -> str:
-        e = p[parameter]
-        return f"{fmt.format(e.value)} [{fmt.format(e.low)}, {fmt.format(e.high)}]"
-
-    figure.suptitle(
-        f"{log.source}: K = {show(Parameter.GEAR_STIFFNESS, '{:.0f}')} N m/rad, "
-        f"D = {show(Parameter.GEAR_DAMPING, '{:.1f}')} N m s/rad, "
-        f"Kp(4) = {show(Parameter.SERVO_KP, '{:.2f}')} 1/s\n"
-        f"Kpp = {show(Parameter.POSITION_GAIN, '{:.2f}')} 1/s, "
-        f"kv = {show(Parameter.VELOCITY_GAIN, '{:.1f}')} N m s/rad, "
-        f"Ti = {show(Parameter.VELOCITY_INTEGRAL_TIME, '{:.1f}')} s (95 %)",
-        fontsize=10,
-    )
+    figure.suptitle(_title(result, log.source), fontsize=10)
     path = Path(path)
     figure.savefig(path, dpi=110)
     return path

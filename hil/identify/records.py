@@ -1,6 +1,6 @@
 """What the fit reads: one joint's measured signals from a run, and the figures it must be told.
 
-A run log (hil/runlog.py) has, per joint, goal_rad, motor_angle_rad, link_angle_rad,
+A run log (hil/output/runlog.py) has, per joint, goal_rad, motor_angle_rad, link_angle_rad,
 motor_velocity_rad_s, motor_current_a and torque_enabled at the loop rate, plus time_s. Row k
 holds the measurements sampled at t_k and the goal written after them, which the actuator
 follows over [t_k, t_k+1). A row whose goal is not a number sent nothing (the actuator keeps
@@ -100,7 +100,7 @@ class JointLog:
     ) -> JointLog:
         """The longest stretch of a run log in which the actuator followed goals.
 
-        columns: what hil.runlog.read_log returns. joint: the joint's name in a multi-joint
+        columns: what hil.output.read_log returns. joint: the joint's name in a multi-joint
         log (columns `goal_rad[name]`, ...); None for a single-joint log.
         A sample k belongs to the stretch if a goal is in force over tick k (a goal was sent at
         or before it), torque is on at k+1 (so it was on over the tick), every signal at k is

@@ -36,7 +36,7 @@ from hil.identify import (
     peak_motor_torque_bound_nm,
     render_config_fragment,
 )
-from hil.runlog import RunLog, read_log
+from hil.output import PER_JOINT_COLUMNS, RunLog, read_log
 from sim_backend.canbus import LinkEncoderNode
 from sim_backend.canbus.encoder_node import RLC2IC_MR075_COUNTS_PER_REV
 from sim_backend.dynamixel import H54_LAYOUT, H54Device
@@ -84,7 +84,7 @@ def emulated_log(
     seed: int = 0,
     torque_limit_units: int | None = None,
 ) -> dict[str, np.ndarray]:
-    """Columns as hil.runlog.read_log returns them, for one identification run."""
+    """Columns as hil.output.read_log returns them, for one identification run."""
     device = H54Device(1)
     if torque_limit_units is not None:
         item = H54_LAYOUT["Torque Limit"]
@@ -354,19 +354,20 @@ def test_a_run_log_written_by_hil_reads_back_to_the_same_fit_input(tmp_path) -> 
             }
             joints["reference_rad"] = joints["goal_rad"]
             joints["deflection_rad"] = joints["link_angle_rad"] - joints["motor_angle_rad"]
-            for name in ("hardware_error", "link_age_s", "uc_rad", "d_hat_rad", "ug_rad"):
+            for name in ("actuator_fault", "link_age_s", "uc_rad", "d_hat_rad", "ug_rad"):
                 joints[name] = np.zeros(1)
             joints["motor_valid"] = joints["link_valid"] = np.ones(1)
-            row = {
-                "tick": k,
-                "time_s": columns["time_s"][k],
-                "contact_force_n": nan[0],
-                "supervisor_state": "ok",
-                "skipped_ticks": 0,
-                "slack_s": 0.0,
-                "measured_period_s": PERIOD_S,
-            }
-            log.write_row(row, joints)
+            log.write_row(
+                k,
+                columns["time_s"][k],
+                (nan[0],),
+                "run",
+                "experiment",
+                0,
+                [joints[c] for c in PER_JOINT_COLUMNS],
+                0.0,
+                PERIOD_S,
+            )
     from_file = JointLog.from_log_columns(read_log(tmp_path / "log.csv"))
     direct = JointLog.from_log_columns(columns)
     assert len(from_file) == len(direct) == n  # row 0 (torque on after it) .. the last row

@@ -50,7 +50,7 @@ def node() -> tuple[ForceTorqueSensorNode, CountingSource]:
     return sensor, source
 
 
-def test_object_dictionary(node) -> None:  # noqa: ANN001
+def test_object_dictionary(node) -> None:
     sensor, _ = node
     assert struct.unpack("<I", sdo_upload(sensor, 0x1000, 0))[0] == 0x00020194
     assert sdo_upload(sensor, 0x6131, 0)[0] == 6
@@ -62,7 +62,7 @@ def test_object_dictionary(node) -> None:  # noqa: ANN001
     assert mapping == [0x71300410, 0x71300510, 0x71300610]
 
 
-def test_one_sample_feeds_both_tpdos(node) -> None:  # noqa: ANN001
+def test_one_sample_feeds_both_tpdos(node) -> None:
     sensor, source = node
     frames = sensor.handle(frame(0x080, b""), 0.005)
     assert [f.arbitration_id for f in frames] == [0x180 + NODE, 0x280 + NODE]
@@ -73,7 +73,7 @@ def test_one_sample_feeds_both_tpdos(node) -> None:  # noqa: ANN001
     assert moments == (10, 20, 30)  # 0.01 N m per count
 
 
-def test_tpdo2_takes_sync_types_only(node) -> None:  # noqa: ANN001
+def test_tpdo2_takes_sync_types_only(node) -> None:
     sensor, _ = node
     refused = sdo_download(sensor, 0x1801, 2, 254)
     assert refused[0] == 0x80 and struct.unpack("<I", refused[4:8])[0] == 0x06090030
