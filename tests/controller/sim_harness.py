@@ -116,11 +116,11 @@ class Trace:
         return float(self.time_s[touching[0]]) if touching.size else None
 
 
-def testbed_plant() -> TestbedPlantParams:
+def emulated_plant() -> TestbedPlantParams:
     return TestbedPlantParams()
 
 
-def testbed_controller(
+def configured_controller(
     name: str,
     kdist: float = 1.0,
     *,
@@ -130,7 +130,7 @@ def testbed_controller(
     """The controller as `hil run` builds it for the built-in testbed configuration: the paper's
     K, D, Kp, Q and R, the lab's Euler design, accumulated reading, 11.4 Hz cut-off, and the
     link inertia and gravity moment of the emulated plant (the model matched to the plant)."""
-    plant = plant or testbed_plant()
+    plant = plant or emulated_plant()
     fields: dict[str, object] = {
         "joints": FlexibleJointParams.uniform(1),
         "lqr_weights": LqrWeights(10.0, 1.0, 1.0),
@@ -161,7 +161,7 @@ class InProcessTestbed:
         plant: TestbedPlantParams | None = None,
         servo: H54ServoParams | None = None,
     ) -> None:
-        plant = plant or testbed_plant()
+        plant = plant or emulated_plant()
         plant = TestbedPlantParams(
             **{
                 **{f: getattr(plant, f) for f in plant.__dataclass_fields__},
