@@ -75,7 +75,7 @@ class ControllerParams:
     kdist_ramp_s: how long a Kdist change takes (default the lab's 0.1 s = 20 ticks at 200 Hz;
         0 = a step); rounded to whole ticks.
     dob_cutoff_hz / dob_filter_pole: the Q filter, by its cut-off or by its pole (at most one;
-        neither: the lab's pole 0.7 at 200 Hz, i.e. `LAB_DOB_CUTOFF_HZ` = 11.3514 Hz).
+        neither: the lab's pole 0.7 at 200 Hz, i.e. `LAB_DOB_CUTOFF_HZ` = 11.3533 Hz).
     composition: "accumulated" (the lab's code, default), "literal" or "accumulated-integral"
         (bounded contact against an integrating servo; needs dob_integral_time_s); see
         composition.py.

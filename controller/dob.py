@@ -27,9 +27,9 @@ d -> d_hat is Kdist (1 - alpha) / (z - alpha): the zero-order-hold equivalent of
 step is 1 - exp(-wc k dt), the continuous step response at the ticks).
 
 The filter pole, said once. The lab's filter is q(k) = 0.7 q(k-1) + 0.3 raw(k) at 200 Hz
-(`LAB_Q_FILTER_POLE`), i.e. fc = -ln(0.7) / (2 pi 0.005 s) = 11.3514 Hz under this mapping
+(`LAB_Q_FILTER_POLE`), i.e. fc = -ln(0.7) / (2 pi 0.005 s) = 11.3533 Hz under this mapping
 (`LAB_DOB_CUTOFF_HZ`, the default of `ControllerParams`). A cut-off rounded to 11.4 Hz (the
-testbed configuration's) gives alpha = exp(-2 pi 11.4 0.005) = 0.69898, not 0.7: the lab's values
+testbed configuration's) gives alpha = exp(-2 pi 11.4 0.005) = 0.69897, not 0.7: the lab's values
 are reached exactly with the cut-off `LAB_DOB_CUTOFF_HZ` or by giving the pole itself
 (`filter_pole=0.7`, `ControllerParams(dob_filter_pole=0.7)`).
 
