@@ -9,6 +9,9 @@ push), stepped in lock-step at the loop period exactly as the emulator does on e
                  then the encoder latches the link angle (SYNC -> TPDO) and the host reads the
                  control table's Present Position
 
+The sensors carry the emulator's nominal noise (`SensorNoise`, `H54ServoParams`), seeded as
+the emulator seeds them; pass zero figures for an ideal testbed.
+
 Units cross the "wire" only through the emulator's own conversions: the goal is written as
 Goal Position pulses (sim_backend.servo.RAD_PER_PULSE) through `H54Device.write` (the access
 and limit rules of the real device apply), the motor angle is read as Present Position pulses,
@@ -44,7 +47,7 @@ from sim_backend.canbus import LinkEncoderNode
 from sim_backend.dynamixel import H54_LAYOUT, H54Device
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import PushEvent
-from sim_backend.server import _rng, _with_obstacle
+from sim_backend.server import SensorNoise, _rng, _with_obstacle
 from sim_backend.servo import OVERLOAD_BIT, RAD_PER_PULSE, H54ServoParams
 from sim_backend.testbed import EmulatedJoint, VirtualTestbed
 
@@ -160,8 +163,10 @@ class InProcessTestbed:
         seed: int = 0,
         plant: TestbedPlantParams | None = None,
         servo: H54ServoParams | None = None,
+        sensor_noise: SensorNoise | None = None,
     ) -> None:
         plant = plant or emulated_plant()
+        noise = sensor_noise or SensorNoise()
         plant = TestbedPlantParams(
             **{
                 **{f: getattr(plant, f) for f in plant.__dataclass_fields__},
@@ -178,7 +183,8 @@ class InProcessTestbed:
         self.encoder = LinkEncoderNode(
             ENCODER_NODE_ID,
             lambda: self.joint.plant.link_angle_rad,
-            seed=seed * 7919,
+            seed=seed * 7919,  # as the emulator seeds its first encoder
+            noise_counts_rms=noise.link_encoder_counts_rms,
         )
         self._tpdo_id = 0x180 + ENCODER_NODE_ID
         self._rad_per_count = 2.0 * math.pi / int(self.encoder._store.stored_value(0x6001))
@@ -224,6 +230,7 @@ def simulate(
     seed: int = 0,
     plant: TestbedPlantParams | None = None,
     servo: H54ServoParams | None = None,
+    sensor_noise: SensorNoise | None = None,
     hold_ticks: int = HOLD_TICKS,
     period_s: float = PERIOD_S,
     before_step: Callable[[int, float, JointController], None] | None = None,
@@ -232,7 +239,7 @@ def simulate(
 
     before_step(tick, time_s, controller) runs before each controller step (e.g. a Kdist
     schedule)."""
-    bed = InProcessTestbed(scene, seed=seed, plant=plant, servo=servo)
+    bed = InProcessTestbed(scene, seed=seed, plant=plant, servo=servo, sensor_noise=sensor_noise)
     n_ticks = int(round(scene.duration_s / period_s))
     rows = np.full((n_ticks, 8), math.nan)
     hold_goal = math.nan
