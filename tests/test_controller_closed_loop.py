@@ -279,6 +279,17 @@ def test_continuous_design_run_at_200_hz_is_unstable(weights: LqrWeights, inerti
     assert loop.spectral_radius() < 0.97
 
 
+@pytest.mark.parametrize(
+    "weights, radius", [(LqrWeights(), 2.989), (LqrWeights(state_increment_weight=10.0), 13.00)]
+)
+def test_continuous_gain_at_200_hz_on_the_testbed_link(weights: LqrWeights, radius: float) -> None:
+    """I = 0.376 kg m^2 (the figures docs/reproduction.md and controller/lqr.py quote)."""
+    sm = single_link_sm(0.376)
+    sampled = sample_continuous_gain(design_continuous_tracking_lqr(PAPER, sm, weights), DT_S)
+    loop = SampledLoop(PAPER, sampled, PAPER, sm, kdist=None, reading="literal")
+    assert loop.spectral_radius() == pytest.approx(radius, abs=0.005)
+
+
 def test_lab_euler_design_breaks_for_light_links_where_zoh_holds() -> None:
     """Forward Euler misplaces the gear's fast pole for I < 0.2375 kg m^2 (model.discretise)."""
     euler = [_radius(0.05, kdist=1.0, reading="literal", corner=c, method="euler") for c in CORNERS]

@@ -19,8 +19,9 @@ the link angle arrives as the encoder node's TPDO counts (its counts per revolut
 
 The loop around the controller is hil's: hold the present position for `hold_ticks` (goal =
 the motor angle read at tick 0), then reset the controller with that hold goal as the goal in
-force and step it every tick, sending what it returns (no supervisor: nothing clips the goal,
-so the actuator's own overload protection is what a test sees).
+force and step it every tick. Of hil's supervisor only the goal's limits are kept (the joint's
+angle range and the goal rate of the built-in configuration, fed back through notify_applied);
+there is no current guard, so the actuator's own overload protection is what a test sees.
 """
 
 from __future__ import annotations
@@ -53,6 +54,8 @@ from sim_backend.testbed import EmulatedJoint, VirtualTestbed
 
 PERIOD_S = 0.005  # the paper's 200 Hz
 HOLD_TICKS = 5  # hil's [loop] stop_cycles
+GOAL_RANGE_RAD = (-0.8, 0.8)  # hil/data/testbed.toml [[joint]] min/max_angle_rad
+MAX_GOAL_RATE_RAD_S = 2.0  # hil/data/testbed.toml [safety] max_goal_rate_rad_s
 ENCODER_NODE_ID = 5
 _SYNC = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
 _START_ALL = can.Message(arbitration_id=0x000, data=bytes([0x01, 0]), is_extended_id=False)
@@ -233,6 +236,8 @@ def simulate(
     sensor_noise: SensorNoise | None = None,
     hold_ticks: int = HOLD_TICKS,
     period_s: float = PERIOD_S,
+    goal_range_rad: tuple[float, float] = GOAL_RANGE_RAD,
+    max_goal_rate_rad_s: float = MAX_GOAL_RATE_RAD_S,
     before_step: Callable[[int, float, JointController], None] | None = None,
 ) -> Trace:
     """Run `controller` through `scene` on the in-process testbed; one Trace row per tick.
@@ -242,7 +247,7 @@ def simulate(
     bed = InProcessTestbed(scene, seed=seed, plant=plant, servo=servo, sensor_noise=sensor_noise)
     n_ticks = int(round(scene.duration_s / period_s))
     rows = np.full((n_ticks, 8), math.nan)
-    hold_goal = math.nan
+    hold_goal = goal = math.nan
     for k in range(n_ticks):
         time_s = k * period_s
         motor, link = bed.sync(period_s)
@@ -258,7 +263,10 @@ def simulate(
                 controller.reset(m, j, r, goal_in_force_rad=np.array([hold_goal]))
             if before_step is not None:
                 before_step(k, time_s, controller)
-            goal = float(controller.step(m, j, r)[0])
+            proposed = float(controller.step(m, j, r)[0])
+            step_limit = max_goal_rate_rad_s * period_s
+            goal = min(max(proposed, goal - step_limit), goal + step_limit)
+            goal = min(max(goal, goal_range_rad[0]), goal_range_rad[1])
             controller.notify_applied(np.array([goal]))
         if bed.device.torque_enabled:
             bed.write_goal(goal)
