@@ -84,15 +84,16 @@ def main() -> None:
     )
     runs = (*RUNS, _bounded(0.5), _bounded(1.0))
     print(f"design {args.design}, noise {'off' if args.no_noise else 'nominal'}, seed {args.seed}")
+    common = {"seed": args.seed, "servo": servo, "sensor_noise": noise}
     for label, name, kdist, options in runs:
-        def make():  # noqa: ANN202
-            return configured_controller(name, kdist, discretisation=args.design, **options)
-
-        common = {"seed": args.seed, "servo": servo, "sensor_noise": noise}
+        fresh = [
+            configured_controller(name, kdist, discretisation=args.design, **options)
+            for _ in range(2)
+        ]
         contact = contact_metrics(
-            _columns(simulate(make(), contact_scene(args.contact_s), **common))
+            _columns(simulate(fresh[0], contact_scene(args.contact_s), **common))
         )
-        impact_trace = simulate(make(), impact_scene(args.impact_s), **common)
+        impact_trace = simulate(fresh[1], impact_scene(args.impact_s), **common)
         impact = impact_metrics(_columns(impact_trace), IMPACT_PUSH_START_S)
         quasi = quasi_static_error(
             impact_trace.time_s,
