@@ -81,7 +81,7 @@ def test_force_sensor_noise_is_seeded_and_has_its_rms() -> None:
     assert abs(np.mean(error)) < 4 * FORCE_SENSOR_NOISE_N_RMS / math.sqrt(N_SAMPLES)
 
 
-SERVO_SAMPLES = 8000
+SERVO_SAMPLES = 5000
 
 
 def _servo_readings(seed: int, servo: H54ServoParams) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +90,7 @@ def _servo_readings(seed: int, servo: H54ServoParams) -> tuple[np.ndarray, np.nd
     device = H54Device(1)
     joint = EmulatedJoint(device, PlantParams(), servo, rng=np.random.default_rng([seed, 1000]))
     device.set_item("Torque Enable", 1)
-    for _ in range(1000):  # settle the hold (the servo takes the gravity load)
+    for _ in range(500):  # settle the hold (the servo takes the gravity load)
         joint.step(None)
     currents, velocities = [], []
     for _ in range(SERVO_SAMPLES):
