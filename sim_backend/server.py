@@ -36,6 +36,8 @@ import can
 import numpy as np
 
 from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, SlcanPty
+from sim_backend.canbus.encoder_node import RLC2IC_NOISE_COUNTS_RMS
+from sim_backend.canbus.force_sensor_node import FORCE_SENSOR_NOISE_N_RMS
 from sim_backend.dynamixel import (
     BAUD_RATE_BPS,
     DynamixelChain,
@@ -65,6 +67,28 @@ class EmulatedJointSpec:
 
 
 @dataclass(frozen=True)
+class SensorNoise:
+    """Measurement noise of the emulated CAN sensors, zero-mean Gaussian before each device's
+    rounding, drawn from generators seeded by `EmulatorSpec.seed` (same seed, same values; the
+    H54's own Present Current / Velocity noise is in `H54ServoParams`).
+
+    link_encoder_counts_rms: every link encoder's read-head noise [counts rms]; nominal 0.5
+        (`sim_backend.canbus.encoder_node`: RLS give no jitter figure; ~1 count of flicker).
+    force_sensor_n_rms: the obstacle's force sensor [N rms]; nominal 0.05 N (an assumption: the
+        paper names no sensor; `sim_backend.canbus.force_sensor_node`).
+    """
+
+    link_encoder_counts_rms: float = RLC2IC_NOISE_COUNTS_RMS
+    force_sensor_n_rms: float = FORCE_SENSOR_NOISE_N_RMS
+
+    def __post_init__(self) -> None:
+        for name in ("link_encoder_counts_rms", "force_sensor_n_rms"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"sensor noise {name} must be a finite rms >= 0, got {value}")
+
+
+@dataclass(frozen=True)
 class EmulatorSpec:
     """Everything the emulator process needs; `hil` builds it from the configuration file."""
 
@@ -80,6 +104,7 @@ class EmulatorSpec:
     scenario: Scenario = field(default_factory=Scenario)
     reboot_time_s: float = 0.5
     heartbeat_ms: int = 100
+    sensor_noise: SensorNoise = field(default_factory=SensorNoise)
 
     def __post_init__(self) -> None:
         if not self.joints:
@@ -160,6 +185,7 @@ class Emulator:
                     direction=joint_spec.encoder_direction,
                     heartbeat_ms=spec.heartbeat_ms,
                     seed=spec.seed * 7919 + index,
+                    noise_counts_rms=spec.sensor_noise.link_encoder_counts_rms,
                 )
             )
         self.encoders: list[LinkEncoderNode] = list(nodes)
@@ -170,6 +196,7 @@ class Emulator:
                 robot.contact_force_n,
                 heartbeat_ms=spec.heartbeat_ms,
                 seed=spec.seed * 7919 + 999,
+                noise_n_rms=spec.sensor_noise.force_sensor_n_rms,
             )
             nodes.append(self.force_sensor)
         self.testbed = robot.testbed

@@ -98,15 +98,25 @@ class EmulatedJoint:
         self._report()
 
     def _report(self) -> None:
-        noise_rms = self.firmware.params.current_noise_a
-        noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
+        """Present* items with the servo's measurement noise (`H54ServoParams`), drawn from this
+        joint's seeded generator: current first, then velocity, every physics step."""
+        params = self.firmware.params
+        current_noise = (
+            float(self._rng.normal(0.0, params.current_noise_a)) if params.current_noise_a else 0.0
+        )
+        velocity_noise = (
+            float(self._rng.normal(0.0, params.velocity_noise_rad_s))
+            if params.velocity_noise_rad_s
+            else 0.0
+        )
         mount = self.motor_mounting
         self.firmware.report(
             mount.direction * self.plant.motor_torque_nm,
             mount.to_device(self.plant.motor_angle_rad),
             mount.direction * self.plant.motor_velocity_rad_s,
             self._dt,
-            current_noise_a=noise,
+            current_noise_a=current_noise,
+            velocity_noise_rad_s=velocity_noise,
         )
 
 
