@@ -8,11 +8,13 @@ buses on pseudo-terminals stay the end-to-end path.
 
 What a reading holds is what the drivers would report: the motor angle, velocity and current
 from the control table (Present Position/Velocity/Current, undoing the actuator's mounting as
-the driver's offset and direction do), the link angle quantised to the encoder's counts exactly
-as the CiA 406 node counts, the contact force quantised to the force sensor's 1 mN. Faults act
-on the reading: a silent, dropped or corrupted reply makes the actuator's values invalid that
-tick (a silent actuator also ignores goals and torque commands); a dead encoder gives nothing, a
-stale one its last count, a noisy one Gaussian count noise.
+the driver's offset and direction do), the link angle and the contact force from the very CAN
+sensor nodes `hil emulate` serves (`CanopenSlave.sample`: their noise, faults, rounding and random
+draws), converted as the CiA 406 / 404 objects define them. Faults act on the reading: a silent,
+dropped or corrupted reply makes the actuator's values invalid that tick (a silent actuator also
+ignores goals and torque commands); a dead encoder gives nothing, a stale one its last count, a
+noisy one Gaussian count noise. A lock-step run in-process writes the same log, byte for byte,
+as the same run through the emulated buses.
 """
 
 from __future__ import annotations
@@ -63,9 +65,7 @@ class DirectTestbed:
         self._faults = self.schedule.at(None)
         self._drops_pending: list[int] = []
         self._corrupt_pending: list[int] = []
-        self._stale_counts: list[int | None] = [None] * n
-        self._last_counts: list[int] = [0] * n
-        self._encoder_rng = [np.random.default_rng([spec.seed, 7919, index]) for index in range(n)]
+        self.encoders, self.force_sensor = self.robot.sensor_nodes(spec)
         self._counts_per_rad = np.array(
             [j.encoder_counts_per_rev / (2.0 * math.pi) for j in spec.joints]
         )
@@ -82,6 +82,14 @@ class DirectTestbed:
         self._faults = self.schedule.at(testbed.scenario_time_s)
         self._drops_pending += self._faults.drop_next
         self._corrupt_pending += self._faults.corrupt_next
+        for node, mode, noise in zip(
+            self.encoders,
+            self._faults.encoder_mode,
+            self._faults.encoder_noise_counts_rms,
+            strict=True,
+        ):
+            node.fault.mode = mode
+            node.fault.noise_counts_rms = noise
 
     @property
     def faults(self) -> ActiveFaults:
@@ -99,7 +107,7 @@ class DirectTestbed:
         for i in range(n):
             if self._actuator_answers(i):
                 self._read_actuator(i, reading)
-            counts = self._encoder_counts(i)
+            counts = self.encoders[i].sample(self.time_s)
             if counts is not None:
                 joint = self.spec.joints[i]
                 angle = counts / self._counts_per_rad[i] - joint.encoder_offset_rad
@@ -132,34 +140,11 @@ class DirectTestbed:
         reading.torque_enabled[i] = device.torque_enabled
         reading.motor_valid[i] = True
 
-    def _encoder_counts(self, i: int) -> int | None:
-        """The count the CiA 406 node would send at this SYNC (None: it sends nothing)."""
-        mode = self._faults.encoder_mode[i]
-        if mode == "dead":
-            self._stale_counts[i] = None
-            return None
-        if mode == "stale":
-            if self._stale_counts[i] is None:
-                self._stale_counts[i] = self._last_counts[i]
-            return self._stale_counts[i]
-        self._stale_counts[i] = None
-        joint = self.spec.joints[i]
-        # the node's source and formula (server._link_angle_source, LinkEncoderNode)
-        angle = self.robot.joints[i].plant.link_angle_rad
-        source = angle + joint.encoder_direction * joint.encoder_offset_rad
-        exact = joint.encoder_direction * source * self._counts_per_rad[i]
-        noise = self._faults.encoder_noise_counts_rms[i]
-        if mode == "noisy" and noise > 0:
-            exact += float(self._encoder_rng[i].normal(0.0, noise))
-        counts = math.floor(exact + 0.5)
-        self._last_counts[i] = counts
-        return counts
-
     def _force_n(self) -> float:
-        if not self.spec.force_sensor_node_id:
+        if self.force_sensor is None:
             return math.nan
-        counts = math.floor(self.robot.contact_force_n() / FORCE_SENSOR_NEWTONS_PER_COUNT + 0.5)
-        return counts * FORCE_SENSOR_NEWTONS_PER_COUNT
+        counts = self.force_sensor.sample(self.time_s)
+        return math.nan if counts is None else counts * FORCE_SENSOR_NEWTONS_PER_COUNT
 
     # --- commands ----------------------------------------------------------------------------
     def hears(self, i: int) -> bool:

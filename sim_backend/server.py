@@ -160,6 +160,35 @@ class EmulatedRobot:
     def contact_force_n(self) -> float:
         return sum(j.plant.contact_force_n() for j in self.joints)
 
+    def sensor_nodes(
+        self, spec: EmulatorSpec
+    ) -> tuple[list[LinkEncoderNode], ForceSensorNode | None]:
+        """The CAN sensors on this robot: a link encoder per joint, the obstacle's force sensor."""
+        encoders = [
+            LinkEncoderNode(
+                joint_spec.encoder_node_id,
+                _link_angle_source(
+                    self.joints[index], joint_spec.encoder_direction, joint_spec.encoder_offset_rad
+                ),
+                counts_per_rev=joint_spec.encoder_counts_per_rev,
+                direction=joint_spec.encoder_direction,
+                heartbeat_ms=spec.heartbeat_ms,
+                seed=spec.seed * 7919 + index,
+                noise_counts_rms=spec.sensor_noise.link_encoder_counts_rms,
+            )
+            for index, joint_spec in enumerate(spec.joints)
+        ]
+        force_sensor = None
+        if spec.force_sensor_node_id:
+            force_sensor = ForceSensorNode(
+                spec.force_sensor_node_id,
+                self.contact_force_n,
+                heartbeat_ms=spec.heartbeat_ms,
+                seed=spec.seed * 7919 + 999,
+                noise_n_rms=spec.sensor_noise.force_sensor_n_rms,
+            )
+        return encoders, force_sensor
+
 
 class Emulator:
     """The virtual testbed on its buses. `run()` serves until `stop()` or a signal."""
@@ -171,33 +200,9 @@ class Emulator:
         self.robot = robot
         self.devices = robot.devices
         self.joints = robot.joints
-        nodes: list[Any] = []
-        for index, joint_spec in enumerate(spec.joints):
-            nodes.append(
-                LinkEncoderNode(
-                    joint_spec.encoder_node_id,
-                    _link_angle_source(
-                        robot.joints[index],
-                        joint_spec.encoder_direction,
-                        joint_spec.encoder_offset_rad,
-                    ),
-                    counts_per_rev=joint_spec.encoder_counts_per_rev,
-                    direction=joint_spec.encoder_direction,
-                    heartbeat_ms=spec.heartbeat_ms,
-                    seed=spec.seed * 7919 + index,
-                    noise_counts_rms=spec.sensor_noise.link_encoder_counts_rms,
-                )
-            )
-        self.encoders: list[LinkEncoderNode] = list(nodes)
-        self.force_sensor: ForceSensorNode | None = None
-        if spec.force_sensor_node_id:
-            self.force_sensor = ForceSensorNode(
-                spec.force_sensor_node_id,
-                robot.contact_force_n,
-                heartbeat_ms=spec.heartbeat_ms,
-                seed=spec.seed * 7919 + 999,
-                noise_n_rms=spec.sensor_noise.force_sensor_n_rms,
-            )
+        self.encoders, self.force_sensor = robot.sensor_nodes(spec)
+        nodes: list[Any] = list(self.encoders)
+        if self.force_sensor is not None:
             nodes.append(self.force_sensor)
         self.testbed = robot.testbed
         self.chain = DynamixelChain(self.devices, enforce_baud=True)

@@ -15,8 +15,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from controller import COMPOSITION_READINGS
-from controller.model import DISCRETISATIONS
+from controller import (
+    COMPOSITION_READINGS,
+    LAB_KDIST_RAMP_S,
+    LINK_VELOCITY_INCREMENTS,
+    LQR_DESIGNS,
+)
 from hil.vocabulary import ControllerKind, EmulatorClock, Reaction, SafetyCause
 
 Direction = Literal[1, -1]
@@ -135,28 +139,53 @@ class ModelSection(Section):
 
 
 class ControllerSection(Section):
+    """The controller (Kim et al. Sec. III) and its options; controller/controllers.py
+    ControllerParams says what each does. The choices are the controller package's own."""
+
     name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
     kdist: float = Field(1.0, ge=0)
+    kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
     q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
     q_state: float = Field(1.0, ge=0)
     r_input: float = Field(1.0, gt=0)
-    dob_cutoff_hz: float = Field(11.4, gt=0)
-    composition: str = "accumulated"
-    discretization: str = "euler"
+    dob_cutoff_hz: float | None = Field(None, gt=0)  # the Q filter by its cut-off, or ...
+    dob_filter_pole: float | None = Field(None, ge=0, lt=1)  # ... by its pole; neither: 0.7
+    composition: str = "accumulated"  # the reading of (25)
+    dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
+    discretization: str = "euler"  # the LQR design
+    link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")
     @classmethod
     def _composition(cls, value: str) -> str:
-        if value not in COMPOSITION_READINGS:
-            raise ValueError(f"must be one of {list(COMPOSITION_READINGS)}")
-        return value
+        return _one_of(value, COMPOSITION_READINGS)
 
     @field_validator("discretization")
     @classmethod
     def _discretization(cls, value: str) -> str:
-        if value not in DISCRETISATIONS:
-            raise ValueError(f"must be one of {list(DISCRETISATIONS)}")
-        return value
+        return _one_of(value, LQR_DESIGNS)
+
+    @field_validator("link_velocity_increment")
+    @classmethod
+    def _increment(cls, value: str) -> str:
+        return _one_of(value, LINK_VELOCITY_INCREMENTS)
+
+    @model_validator(mode="after")
+    def _filter_and_reading(self) -> ControllerSection:
+        if self.dob_cutoff_hz is not None and self.dob_filter_pole is not None:
+            raise ValueError("give dob_cutoff_hz or dob_filter_pole, not both")
+        if self.composition == "accumulated-integral" and self.dob_integral_time_s is None:
+            raise ValueError(
+                "composition 'accumulated-integral' needs dob_integral_time_s (the servo's "
+                "velocity-loop integral time; `hil identify` measures it)"
+            )
+        return self
+
+
+def _one_of(value: str, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise ValueError(f"must be one of {list(choices)}")
+    return value
 
 
 def _reaction(default: Reaction) -> Any:

@@ -12,7 +12,7 @@ from controller import (
     PendulumGravity,
     make_controller,
 )
-from hil.config import Config
+from hil.config import Config, ConfigError
 from hil.vocabulary import ControllerChoice
 
 
@@ -36,6 +36,12 @@ def build_controller(config: Config, choice: ControllerChoice, period_s: float) 
     gravity with m r per joint)."""
     section = config.controller
     n = len(config.joints)
+    reading = choice.reading or section.composition
+    if reading == "accumulated-integral" and section.dob_integral_time_s is None:
+        raise ConfigError(
+            f"{config.source} [controller] dob_integral_time_s: the reading "
+            "'accumulated-integral' needs it (the servo's velocity-loop integral time)"
+        )
     params = ControllerParams(
         joints=joint_params(config),
         lqr_weights=LqrWeights(
@@ -44,9 +50,15 @@ def build_controller(config: Config, choice: ControllerChoice, period_s: float) 
             input_increment_weight=section.r_input,
         ),
         kdist=choice.kdist,
+        kdist_ramp_s=section.kdist_ramp_s,
         dob_cutoff_hz=section.dob_cutoff_hz,
-        composition=choice.reading or section.composition,  # type: ignore[arg-type]
+        dob_filter_pole=section.dob_filter_pole,
+        composition=reading,  # type: ignore[arg-type]
+        dob_integral_time_s=(
+            section.dob_integral_time_s if reading == "accumulated-integral" else None
+        ),
         discretisation=section.discretization,  # type: ignore[arg-type]
+        link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
     )
     model = config.model
     sm = np.eye(n) / model.link_inertia_kg_m2

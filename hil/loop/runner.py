@@ -266,8 +266,8 @@ class Loop:
         if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
             return None
         controller = self.controller
-        if not self._controller_started:
-            controller.reset(sample.motor_angle_rad, link, reference)
+        if not self._controller_started:  # bumpless: from the goal the servo is driven with
+            controller.reset(sample.motor_angle_rad, link, reference, self._last_goal)
             self._controller_started = True
         elif k - self._last_step_tick > 1:  # ticks without a step: do not read them as motion
             controller.resync(sample.motor_angle_rad, link)

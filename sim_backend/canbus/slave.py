@@ -229,6 +229,15 @@ class CanopenSlave(abc.ABC):
             self._next_event_us = self._advance(self._next_event_us, self._event_period_us())
         return out
 
+    def sample(self, now_s: float) -> int | None:
+        """The raw process value a SYNC at `now_s` would latch (None while the node is dead):
+        the same noise, fault and rounding, the same random draws as on the bus. For running the
+        emulated robot in-process (sim_backend.direct), where no frames are exchanged."""
+        self._prologue(now_s)
+        if self.fault.mode == "dead":
+            return None
+        return self._sample_raw()
+
     # --- for subclasses --------------------------------------------------------------------
     @abc.abstractmethod
     def _ideal_raw(self) -> float:

@@ -41,7 +41,7 @@ def test_continuous_design_is_hurwitz_with_zero_riccati_residual(inertia: float)
     assert solution.gain[0, 0] == pytest.approx(np.sqrt(10.0), rel=1e-8)
 
 
-def _riccati_by_iteration(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray):  # noqa: ANN202
+def _riccati_by_iteration(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray):
     """P of the DARE by value iteration, P <- Q + A'PA - A'PB (R + B'PB)^-1 B'PA (independent
     of scipy's solver)."""
     p = q.copy()

@@ -107,7 +107,7 @@ def _loop_matrix(gain: np.ndarray, kdist: float, zero_velocity_increment: bool) 
     return np.array(columns).T
 
 
-def _product_controller(kdist: float, increment: str = "backward-difference"):  # noqa: ANN202
+def _product_controller(kdist: float, increment: str = "backward-difference"):
     params = ControllerParams(
         joints=FlexibleJointParams.uniform(1),
         lqr_weights=LqrWeights(10.0, 1.0, 1.0),

@@ -1,12 +1,12 @@
-"""hil.steady_state on synthetic signals with known answers: the quasi-static error at a stated
-time, the slow mode's equilibrium and time constant, and honest failures."""
+"""hil.experiments.steady_state on synthetic signals with known answers: the quasi-static error
+at a stated time, the slow mode's equilibrium and time constant, and honest failures."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from hil.steady_state import SlowModeFitError, fit_slow_mode, quasi_static_error
+from hil.experiments.steady_state import SlowModeFitError, fit_slow_mode, quasi_static_error
 
 DT_S = 0.005
 

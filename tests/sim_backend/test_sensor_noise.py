@@ -31,7 +31,7 @@ COUNTS_PER_REV = 983_040
 N_SAMPLES = 20_000
 
 
-def _tpdo_values(node, node_id: int, n: int, before_sync=None) -> np.ndarray:  # noqa: ANN001
+def _tpdo_values(node, node_id: int, n: int, before_sync=None) -> np.ndarray:
     node.poll(0.0)
     node.handle(START_ALL, 0.0)
     values = []
