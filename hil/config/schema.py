@@ -249,6 +249,7 @@ class EmulatorSection(Section):
     seed: int = Field(0, ge=0)
     plant: dict[str, Any] = Field(default_factory=dict)  # plant parameter overrides
     servo: dict[str, Any] = Field(default_factory=dict)  # servo parameter overrides
+    sensor_noise: dict[str, Any] = Field(default_factory=dict)  # CAN sensors' noise overrides
     reboot_time_s: float = Field(0.5, gt=0)
 
 

@@ -2,8 +2,8 @@
 
 The same function builds the bus for the real robot and for an emulated one; only the ports
 differ (`Connection`). Device checks (ID ranges, baud rates, current limits, position ranges)
-are the drivers' own: `check_devices` builds every driver configuration without opening a port,
-so a bad value is refused before anything is sent, in every mode.
+are the drivers' own: `hil.wiring.checks.check_devices` builds every driver configuration
+without opening a port, so a bad value is refused before anything is sent, in every mode.
 
 In lock-step emulation the timeouts are widened: the emulator answers every request, but a
 loaded machine may delay it by tens of milliseconds, and a timeout that fired on such a delay
@@ -109,14 +109,6 @@ def bus_config(config: Config, connection: Connection) -> DynamixelCanBusConfig:
             else config.loop.bus_read_timeout_ms / 1000.0
         ),
     )
-
-
-def check_devices(config: Config) -> None:
-    """Every device figure the drivers check, checked now (no port is opened): ConfigError."""
-    try:
-        bus_config(config, Connection.from_config(config, require_ports=False))
-    except ValueError as exc:
-        raise ConfigError(f"{config.source}: {exc}") from exc
 
 
 def make_bus(
