@@ -81,6 +81,17 @@ class ForceSensorSection(Section):
     offset_n: float = 0.0  # its reading with nothing touching (subtracted)
 
 
+class ForceTorqueSensorSection(Section):
+    """A six-axis force/torque sensor on CAN (the humanoid's feet: name them "left_foot" and
+    "right_foot"); its readings are logged as `<name>_fx_n` ... `<name>_mz_nm`."""
+
+    name: str = Field(min_length=1)
+    node_id: int = Field(ge=1, le=127)
+    can: str | None = None  # the channel it is on (None: the only one)
+    force_offset_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # readings at zero load
+    torque_offset_nm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 class JointSection(Section):
     """One flexible joint: its actuator, its link encoder, their mounting and its limits."""
 
@@ -97,6 +108,10 @@ class JointSection(Section):
     min_angle_rad: float = -1.0
     max_angle_rad: float = 1.0
     torque_limit_a: float | None = Field(None, gt=0)  # None: leave the device's Torque Limit
+    # The servo's gain registers (device units, as the e-Manual defines them; None: the device's)
+    position_p_gain: int | None = Field(None, ge=0, le=65535)
+    velocity_p_gain: int | None = Field(None, ge=0, le=65535)
+    velocity_i_gain: int | None = Field(None, ge=0, le=65535)
 
     @model_validator(mode="after")
     def _range(self) -> JointSection:
@@ -121,10 +136,17 @@ class ModelSection(Section):
 
     robot "single_link": every joint drives its own link swinging in a vertical plane
     (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
+    robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
+    a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
+    and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
+    off the 200 Hz path; `sm_coupling` "diagonal" (the lab's) or "full".
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
     """
 
-    robot: Literal["single_link"] = "single_link"
+    robot: Literal["single_link", "dyros-jet"] = "single_link"
+    description: str | None = None
+    sm_coupling: Literal["diagonal", "full"] = "diagonal"
+    gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
     stiffness_nm_per_rad: float = Field(2000.0, gt=0)
     damping_nms_per_rad: float = Field(100.0, ge=0)
     servo_gain_per_s: float = Field(10.0, gt=0)
@@ -260,6 +282,9 @@ class ConfigFile(Section):
     dynamixel: list[DynamixelSection] = Field(min_length=1)
     can: list[CanSection] = Field(min_length=1)
     force_sensor: ForceSensorSection = Field(default_factory=ForceSensorSection)
+    force_torque_sensors: list[ForceTorqueSensorSection] = Field(
+        default_factory=list, alias="force_torque_sensor"
+    )
     joints: list[JointSection] = Field(alias="joint", min_length=1)
     model: ModelSection = Field(default_factory=ModelSection)
     controller: ControllerSection = Field(default_factory=ControllerSection)
@@ -282,6 +307,11 @@ class ConfigFile(Section):
             _refers(f"[[joint]] {joint.name!r} dynamixel", joint.dynamixel, chains)
             _refers(f"[[joint]] {joint.name!r} can", joint.can, channels)
         _refers("[force_sensor] can", self.force_sensor.can, channels)
+        _unique("[[force_torque_sensor]] name", [f.name for f in self.force_torque_sensors])
+        for sensor in self.force_torque_sensors:
+            _refers(f"[[force_torque_sensor]] {sensor.name!r} can", sensor.can, channels)
+        if self.model.robot == "dyros-jet" and self.model.description is None:
+            raise ValueError("[model] description: the robot 'dyros-jet' needs its URDF")
         for chain in chains:
             ids = [j.dynamixel_id for j in self.joints if self.chain_of(j) == chain]
             _unique(f"dynamixel_id on chain {chain!r}", ids)
@@ -289,6 +319,7 @@ class ConfigFile(Section):
             nodes = [j.encoder_node_id for j in self.joints if self.channel_of(j) == channel]
             if self.force_sensor.node_id and self.force_sensor_channel == channel:
                 nodes.append(self.force_sensor.node_id)
+            nodes += [f.node_id for f in self.force_torque_sensors if self.channel_of(f) == channel]
             _unique(f"CAN node ID (encoders and force sensor) on channel {channel!r}", nodes)
         unknown = sorted(set(self.model.joint) - {j.name for j in self.joints})
         if unknown:
@@ -298,8 +329,8 @@ class ConfigFile(Section):
     def chain_of(self, joint: JointSection) -> str:
         return joint.dynamixel or self.dynamixel[0].name
 
-    def channel_of(self, joint: JointSection) -> str:
-        return joint.can or self.can[0].name
+    def channel_of(self, device: JointSection | ForceTorqueSensorSection) -> str:
+        return device.can or self.can[0].name
 
     @property
     def force_sensor_channel(self) -> str:
