@@ -1,7 +1,8 @@
 """The emulated robot without its buses, for loops that run in this process (`DirectTestbed`).
 
-The same devices, firmware, plant, scenario and faults as `hil emulate` (sim_backend/server.py
-builds them with the same `EmulatedRobot.build`), but read and commanded in SI instead of over
+The same devices, firmware, plant, scenario and faults as `hil emulate` (both build them with
+`sim_backend.hardware.build_hardware`, the testbed or the humanoid), but read and commanded in
+SI instead of over
 Protocol 2.0 and CANopen - what python-can's `virtual` interface is to a CAN adapter. It exists
 so that the loop, the supervisor and the start gate can be tested in milliseconds; the emulated
 buses on pseudo-terminals stay the end-to-end path.
@@ -24,13 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.robots import build_hardware
 from sim_backend.scenario import ActiveFaults, FaultSchedule
-from sim_backend.server import EmulatedRobot, EmulatorSpec
 from sim_backend.servo import (
     AMPERE_PER_CURRENT_UNIT,
     RAD_PER_PULSE,
     RAD_S_PER_VELOCITY_UNIT,
 )
+from sim_backend.spec import EmulatorSpec
 
 FORCE_SENSOR_NEWTONS_PER_COUNT = 1e-3  # the emulated CiA 404 sensor's PV is in mN
 
@@ -48,6 +50,7 @@ class DirectReading:
     link_angle_rad: np.ndarray
     link_valid: np.ndarray
     contact_force_n: float
+    wrenches: list[tuple[np.ndarray, np.ndarray] | None]  # per force/torque sensor, SI
 
 
 class DirectTestbed:
@@ -56,7 +59,7 @@ class DirectTestbed:
 
     def __init__(self, spec: EmulatorSpec) -> None:
         self.spec = spec
-        self.robot = EmulatedRobot.build(spec)
+        self.robot = build_hardware(spec)
         n = len(spec.joints)
         self.n_joints = n
         self.schedule = FaultSchedule(spec.scenario.faults, n)
@@ -65,14 +68,16 @@ class DirectTestbed:
         self._faults = self.schedule.at(None)
         self._drops_pending: list[int] = []
         self._corrupt_pending: list[int] = []
-        self.encoders, self.force_sensor = self.robot.sensor_nodes(spec)
+        self.encoders = self.robot.encoders
+        self.force_sensor = self.robot.force_sensor
+        self.ft_sensors = self.robot.ft_sensors
         self._counts_per_rad = np.array(
             [j.encoder_counts_per_rev / (2.0 * math.pi) for j in spec.joints]
         )
 
     # --- time --------------------------------------------------------------------------------
     def sync(self) -> None:
-        testbed = self.robot.testbed
+        testbed = self.robot
         if self.sync_count == 0:
             testbed.start_scenario()
         else:
@@ -103,6 +108,7 @@ class DirectTestbed:
             nan.copy(), nan.copy(), nan.copy(), np.zeros(n, dtype=np.uint8),
             np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), nan.copy(),
             np.zeros(n, dtype=bool), self._force_n(),
+            [node.sample_wrench(self.time_s) for node in self.ft_sensors],
         )  # fmt: skip
         for i in range(n):
             if self._actuator_answers(i):
@@ -129,7 +135,7 @@ class DirectTestbed:
 
     def _read_actuator(self, i: int, reading: DirectReading) -> None:
         device = self.robot.devices[i]
-        mount = self.robot.joints[i].motor_mounting
+        mount = self.robot.mountings[i]
         pulses = device.item("Present Position")
         reading.motor_angle_rad[i] = mount.to_physical(pulses * RAD_PER_PULSE)
         velocity = device.item("Present Velocity") * RAD_S_PER_VELOCITY_UNIT
@@ -157,7 +163,7 @@ class DirectTestbed:
         if not self.hears(i):
             return False
         device = self.robot.devices[i]
-        pulses = round(self.robot.joints[i].motor_mounting.to_device(goal_rad) / RAD_PER_PULSE)
+        pulses = round(self.robot.mountings[i].to_device(goal_rad) / RAD_PER_PULSE)
         return device.write_item("Goal Position", pulses) == 0
 
     def set_torque(self, i: int, on: bool) -> bool:

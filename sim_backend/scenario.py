@@ -78,23 +78,29 @@ class Scenario:
     pushes: tuple[PushEvent, ...] = ()
     faults: tuple[FaultEvent, ...] = ()
     obstacle_contact_angle_rad: float | None = None  # None: no block in reach
+    pelvis_pushes: tuple[PelvisPushEvent, ...] = ()  # the humanoid's
 
     def to_dict(self) -> dict:
         return {
             "pushes": [vars(p) for p in self.pushes],
             "faults": [vars(f) for f in self.faults],
             "obstacle_contact_angle_rad": self.obstacle_contact_angle_rad,
+            "pelvis_pushes": [vars(p) for p in self.pelvis_pushes],
         }
 
     @classmethod
     def from_dict(cls, data: dict) -> Scenario:
-        unknown = set(data) - {"pushes", "faults", "obstacle_contact_angle_rad"}
+        unknown = set(data) - {"pushes", "faults", "obstacle_contact_angle_rad", "pelvis_pushes"}
         if unknown:
             raise ValueError(f"unknown scenario keys {sorted(unknown)}")
         return cls(
             pushes=tuple(PushEvent(**p) for p in data.get("pushes", [])),
             faults=tuple(FaultEvent(**f) for f in data.get("faults", [])),
             obstacle_contact_angle_rad=data.get("obstacle_contact_angle_rad"),
+            pelvis_pushes=tuple(
+                PelvisPushEvent(p["start_s"], p["duration_s"], tuple(p["force_n"]))
+                for p in data.get("pelvis_pushes", [])
+            ),
         )
 
 
@@ -179,3 +185,12 @@ def _activate(event: FaultEvent, active: ActiveFaults) -> None:
     elif event.kind == "noisy_encoder":
         active.encoder_mode[joint] = "noisy"
         active.encoder_noise_counts_rms[joint] = event.noise_counts_rms
+
+
+@dataclass(frozen=True)
+class PelvisPushEvent:
+    """A force [N] (world frame) on the humanoid's pelvis from start_s for duration_s."""
+
+    start_s: float
+    duration_s: float
+    force_n: tuple[float, float, float]

@@ -128,6 +128,16 @@ class ForceTorqueSensorNode(CanopenSlave):
         ]
         self._latched_valid = True
 
+    def sample_wrench(self, now_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(force [N], moment [N m]) a SYNC at `now_s` would latch, in the units its objects
+        define (None while the node is dead): the in-process counterpart of its TPDOs."""
+        self._prologue(now_s)
+        if self.fault.mode == "dead":
+            return None
+        self._sample_all()
+        values = np.asarray(self._latched, dtype=float) / self._counts_per_unit
+        return values[:3], values[3:]
+
     def _channel_hook(self, channel: int) -> Callable[[], int]:
         def read() -> int:
             if not self._in_sync:

@@ -94,8 +94,8 @@ class EmulatedRobot:
         self._caps = np.zeros(N_LEG_JOINTS)
         self._gains = np.array([f.velocity_gain() for f in self.firmware])
         self._no_push = np.zeros(3)
-        self.time_s = 0.0
-        self.scenario_origin_s: float | None = None
+        self.steps = 0  # time in whole physics steps: a float summed step by step drifts
+        self._origin_step: int | None = None
         self._carry_s = 0.0
         self.plant.place_standing(initial_leg_angles_rad, support_feet)
         for joint, table in enumerate(self.tables):
@@ -111,16 +111,20 @@ class EmulatedRobot:
     def physics_timestep_s(self) -> float:
         return self._dt
 
+    @property
+    def time_s(self) -> float:
+        return self.steps * self._dt
+
     def start_scenario(self) -> None:
         """The scenario clock (pushes) starts now (the emulator calls it at the first SYNC)."""
-        if self.scenario_origin_s is None:
-            self.scenario_origin_s = self.time_s
+        if self._origin_step is None:
+            self._origin_step = self.steps
 
     @property
     def scenario_time_s(self) -> float | None:
-        if self.scenario_origin_s is None:
+        if self._origin_step is None:
             return None
-        return self.time_s - self.scenario_origin_s
+        return (self.steps - self._origin_step) * self._dt
 
     def advance(self, duration_s: float) -> int:
         """Advance by whole physics steps covering duration_s (remainders carry over)."""
@@ -161,7 +165,7 @@ class EmulatedRobot:
             push = sum((event.force_at(scenario_time) for event in self.pushes), np.zeros(3))
         plant.set_pelvis_force(push)
         plant.step()
-        self.time_s += dt
+        self.steps += 1
         self._report_all()
 
     def on_reboot(self, joint: int) -> None:
