@@ -245,10 +245,12 @@ class LegModel:
     def standing_configuration(
         self, leg_angles_rad: np.ndarray, side: int = 0, ground_height_m: float = 0.0
     ) -> np.ndarray:
-        """q with sole `side` flat on the ground plane, its centre at the origin's x y = 0."""
+        """q with sole `side` flat on the ground plane, its centre at the origin's x y = 0; the
+        frames (sole_placement, ft_sensor_placement) are left at this q."""
         rotation = self.base_rotation_for_flat_sole(leg_angles_rad, side)
         q = self.configuration(leg_angles_rad, base_rotation=rotation)
         self.update_kinematics(q)
         sole = self.sole_placement(side).translation
         q[:3] = -sole + np.array([0.0, 0.0, ground_height_m])
+        self.update_kinematics(q)
         return q

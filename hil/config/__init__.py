@@ -8,6 +8,7 @@ options go through the same validation (`Config.changed`).
 """
 
 from hil.config.load import (
+    BUILT_IN_CONFIGS,
     DEFAULT_CONFIG_NAME,
     Config,
     ConfigError,
@@ -29,6 +30,7 @@ from hil.config.schema import (
 )
 
 __all__ = [
+    "BUILT_IN_CONFIGS",
     "DEFAULT_CONFIG_NAME",
     "CanSection",
     "Config",

@@ -18,6 +18,8 @@ from pydantic import PrivateAttr, ValidationError
 from hil.config.schema import ConfigFile
 
 DEFAULT_CONFIG_NAME = "testbed.toml"
+# The configurations shipped with hil, by robot (`hil config --robot NAME` prints them).
+BUILT_IN_CONFIGS = {"testbed": DEFAULT_CONFIG_NAME, "dyros-jet": "dyros_jet.toml"}
 
 
 class ConfigError(ValueError):
@@ -64,14 +66,22 @@ class Config(ConfigFile):
         return {"source": self.source, **self.model_dump(mode="json", by_alias=True)}
 
 
-def default_config_text() -> str:
-    return resources.files("hil").joinpath("data", DEFAULT_CONFIG_NAME).read_text()
+def default_config_text(robot: str = "testbed") -> str:
+    """The configuration shipped for `robot` (see BUILT_IN_CONFIGS)."""
+    try:
+        name = BUILT_IN_CONFIGS[robot]
+    except KeyError:
+        raise ConfigError(
+            f"no built-in configuration for robot {robot!r}: {sorted(BUILT_IN_CONFIGS)}"
+        ) from None
+    return resources.files("hil").joinpath("data", name).read_text()
 
 
-def load_config(path: str | Path | None = None) -> Config:
-    """Read and check a configuration file; None reads the built-in testbed sample."""
+def load_config(path: str | Path | None = None, *, robot: str = "testbed") -> Config:
+    """Read and check a configuration file; None reads the built-in one of `robot`."""
     if path is None:
-        return parse_config(default_config_text(), source=f"<built-in {DEFAULT_CONFIG_NAME}>")
+        name = BUILT_IN_CONFIGS.get(robot, DEFAULT_CONFIG_NAME)
+        return parse_config(default_config_text(robot), source=f"<built-in {name}>")
     path = Path(path)
     try:
         text = path.read_text()

@@ -4,6 +4,8 @@
     impact        Kim et al., ICRA 2018, Fig. 6: an 80 N push while holding
     contact-long  the contact held 30 s: does the compliance last?
     impact-long   the impact held a minute: the error after the push at its equilibrium
+    stand         DYROS-JET's legs hold the walking-ready posture (double support)
+    push          the same, pushed at the pelvis
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
 name that does not exist.
@@ -11,11 +13,14 @@ name that does not exist.
 
 from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperiment, World
 from hil.experiments.contact import CONTACT, CONTACT_LONG
+from hil.experiments.humanoid import PUSH, STAND
 from hil.experiments.impact import IMPACT, IMPACT_LONG
 
 EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG)
+    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG, STAND, PUSH)
 }
+# Which robot each experiment is for (`hil run NAME` picks the robot's built-in configuration).
+ROBOT_OF_EXPERIMENT: dict[str, str] = {"stand": "dyros-jet", "push": "dyros-jet"}
 
 
 def get_experiment(name: str) -> Experiment:
@@ -33,6 +38,9 @@ __all__ = [
     "EXPERIMENTS",
     "IMPACT",
     "IMPACT_LONG",
+    "PUSH",
+    "ROBOT_OF_EXPERIMENT",
+    "STAND",
     "Experiment",
     "Obstacle",
     "Push",

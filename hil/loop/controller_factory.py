@@ -69,6 +69,7 @@ def build_controller(
         ),
         discretisation=section.discretization,  # type: ignore[arg-type]
         link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
+        lqr_coupling=robot.lqr_coupling,  # type: ignore[arg-type]
     )
     sm = robot.sm(start, support)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

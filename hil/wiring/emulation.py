@@ -22,14 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from hil.config import Config, ConfigError
+from hil.config import Config, ConfigError, robot_description_text
 from hil.experiments import Experiment
 from hil.vocabulary import EmulatorClock
 from hil.wiring.hardware import encoder_counts_per_rev
 from sim_backend.plant import TestbedPlantParams
-from sim_backend.scenario import FaultEvent, PushEvent, Scenario
-from sim_backend.server import EmulatedJointSpec, EmulatorSpec, SensorNoise
+from sim_backend.scenario import FaultEvent, PelvisPushEvent, PushEvent, Scenario
 from sim_backend.servo import H54ServoParams
+from sim_backend.spec import EmulatedJointSpec, EmulatorSpec, HumanoidSpec, SensorNoise
 
 STARTUP_TIMEOUT_S = 30.0
 
@@ -49,6 +49,9 @@ def experiment_scenario(
         obstacle_contact_angle_rad=(
             world.obstacle.contact_angle_rad if world.obstacle is not None else None
         ),
+        pelvis_pushes=tuple(
+            PelvisPushEvent(p.start_s, p.duration_s, p.force_n) for p in world.pelvis_pushes
+        ),
     )
 
 
@@ -61,8 +64,13 @@ def plant_servo_noise(
     overrides = dict(emulator.plant)
     if initial_angle_rad is not None:
         overrides.setdefault("initial_link_angle_rad", initial_angle_rad)
+    plant_type: type = TestbedPlantParams
+    if config.model.robot == "dyros-jet":  # [emulator] plant: the humanoid's truth
+        from sim_backend.humanoid.params import RobotTruthParams
+
+        plant_type = RobotTruthParams
     parts = (
-        ("plant", TestbedPlantParams, overrides),
+        ("plant", plant_type, overrides),
         ("servo", H54ServoParams, emulator.servo),
         ("sensor_noise", SensorNoise, emulator.sensor_noise),
     )
@@ -72,7 +80,8 @@ def plant_servo_noise(
             built.append(cls(**values))
         except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
             raise ConfigError(f"{config.source} [emulator] {key}: {exc}") from exc
-    return built[0], built[1], built[2]
+    plant = built[0] if isinstance(built[0], TestbedPlantParams) else TestbedPlantParams()
+    return plant, built[1], built[2]
 
 
 def emulator_spec(
@@ -88,9 +97,10 @@ def emulator_spec(
             f"{config.source}: the emulator serves one Dynamixel chain and one CAN channel "
             f"(this configuration has {len(config.dynamixel)} and {len(config.can)})"
         )
-    initial = None
+    start = None
     if experiment is not None:
-        initial = float(np.atleast_1d(experiment.reference(0.0))[0])
+        start = np.broadcast_to(experiment.reference(0.0), (len(config.joints),))
+    initial = None if start is None or config.model.robot != "single_link" else float(start[0])
     plant, servo, noise = plant_servo_noise(config, initial)
     joints = tuple(
         EmulatedJointSpec(
@@ -121,9 +131,28 @@ def emulator_spec(
             scenario=experiment_scenario(experiment, faults),
             reboot_time_s=config.emulator.reboot_time_s,
             sensor_noise=noise,
+            robot="testbed" if config.model.robot == "single_link" else config.model.robot,
+            humanoid=_humanoid(config, start),
         )
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
+
+
+def _humanoid(config: Config, start: np.ndarray | None) -> HumanoidSpec | None:
+    """The humanoid's part of the spec: its description, foot sensors, the posture it stands in
+    at power-on (the experiment's first reference; else the walking-ready posture)."""
+    if config.model.robot != "dyros-jet":
+        return None
+    from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD
+
+    node_ids = {sensor.name: sensor.node_id for sensor in config.force_torque_sensors}
+    posture = WALKING_READY_LEG_ANGLES_RAD if start is None else tuple(float(a) for a in start)
+    return HumanoidSpec(
+        urdf_text=robot_description_text(config),
+        ft_sensor_node_ids=(node_ids.get("left_foot", 0), node_ids.get("right_foot", 0)),
+        initial_leg_angles_rad=posture,
+        truth=dict(config.emulator.plant),
+    )
 
 
 def spec_to_json(spec: EmulatorSpec) -> str:
@@ -136,6 +165,7 @@ def spec_from_json(text: str) -> EmulatorSpec:
     obstacle = plant.pop("obstacle", None)
     from sim_backend.plant import ObstacleParams
 
+    humanoid = raw.get("humanoid")
     return EmulatorSpec(
         joints=tuple(EmulatedJointSpec(**j) for j in raw["joints"]),
         baudrate=raw["baudrate"],
@@ -152,6 +182,16 @@ def spec_from_json(text: str) -> EmulatorSpec:
         reboot_time_s=raw["reboot_time_s"],
         heartbeat_ms=raw["heartbeat_ms"],
         sensor_noise=SensorNoise(**raw["sensor_noise"]),
+        robot=raw["robot"],
+        humanoid=HumanoidSpec(
+            urdf_text=humanoid["urdf_text"],
+            ft_sensor_node_ids=tuple(humanoid["ft_sensor_node_ids"]),
+            initial_leg_angles_rad=tuple(humanoid["initial_leg_angles_rad"]),
+            support_feet=tuple(humanoid["support_feet"]),
+            truth=humanoid["truth"],
+        )
+        if humanoid
+        else None,
     )
 
 

@@ -1,0 +1,297 @@
+"""The humanoid's standing experiments (DYROS-JET's legs; Kim et al., ICRA 2018, Sec. IV-C).
+
+    stand   hold the walking-ready posture (knees bent, CoM over the middle of the feet) in
+            double support: how far the flexible legs let the pelvis tilt and the ZMP wander,
+            with and without the gravity compensator
+    push    the same, with a push on the pelvis: how far the ZMP goes, how long until it is back,
+            whether the robot falls
+
+Everything is measured from what the robot's own sensors report over the bus, as it would be on
+the real robot: the ZMP from the two feet's force/torque sensors (their pose from the measured
+link angles, the support sole flat on level ground), the pelvis tilt from the measured link
+angles through the legs' kinematics. The robot's model for that is the controller's (pinocchio,
+from the URDF: `controller.humanoid`), not the emulator's.
+
+Metrics (loop time; "settled" = after SETTLE_S of the experiment):
+    pelvis_tilt_rad       largest pelvis tilt from upright, settled (kinematic estimate)
+    max_deflection_rad    largest |link - motor| of any joint, settled
+    zmp_max_error_m       largest distance of the measured ZMP from the desired one (the
+                          desired posture's CoM on the ground), settled
+    zmp_rms_error_m       its rms
+    fell                  the measured ZMP left the support polygon (by FALL_MARGIN_M) for
+                          FALL_TIME_S, or the feet carried less than half the weight, or the
+                          pelvis tilted more than FALL_TILT_RAD
+    push: zmp_excursion_m (largest distance from the ZMP just before the push) and
+          recovery_time_s (from the push until the ZMP stays within RECOVERED_M of it)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from drivers.joint_bus import wrench_keys
+from hil.experiments.base import Experiment, PelvisPush, World
+from hil.output.plots import Push as PushMark
+from hil.output.plots import WorldMarks
+from hil.output.records import RunEntry
+from hil.output.report import Column, Relation, check, find, metric, number
+from hil.output.rundir import RunData
+from hil.vocabulary import ControllerKind
+
+SETTLE_S = 1.0  # the robot starts unloaded on its springs: the first second is the settling
+FALL_MARGIN_M = 0.01
+FALL_TIME_S = 0.1
+FALL_TILT_RAD = 0.3
+RECOVERED_M = 0.01
+FEET = ("left_foot", "right_foot")
+
+
+@functools.lru_cache(maxsize=1)
+def _leg_model():
+    from controller.humanoid import LegModel
+    from hil.config import load_config, robot_description_text
+
+    return LegModel(robot_description_text(load_config(robot="dyros-jet")))
+
+
+@dataclass(frozen=True)
+class StandingKinematics:
+    """Per tick, from the measured link angles and the foot sensors: ZMP, CoM, pelvis tilt."""
+
+    zmp_m: np.ndarray  # ticks x 2 (NaN where the feet carry nothing)
+    vertical_n: np.ndarray
+    tilt_rad: np.ndarray
+    support_polygon: tuple[float, float, float, float]  # x min, x max, y min, y max
+
+    @classmethod
+    def of(cls, run: RunData) -> StandingKinematics:
+        from controller.humanoid import FootWrench, NoSupportError, zmp_from_foot_wrenches
+
+        model = _leg_model()
+        links = np.column_stack(run.per_joint("link_angle_rad"))
+        wrench = {
+            foot: np.column_stack([run.columns[k] for k in wrench_keys(foot)]) for foot in FEET
+        }
+        ticks = links.shape[0]
+        zmp = np.full((ticks, 2), np.nan)
+        vertical = np.zeros(ticks)
+        tilt = np.full(ticks, np.nan)
+        for k in range(ticks):
+            if not np.isfinite(links[k]).all():
+                continue
+            q = model.standing_configuration(links[k], side=0)
+            rotation = _rotation(q)
+            tilt[k] = math.acos(max(-1.0, min(1.0, rotation[2, 2])))
+            feet = []
+            for side, foot in enumerate(FEET):
+                w = wrench[foot][k]
+                if np.isfinite(w).all():
+                    placement = model.ft_sensor_placement(side)
+                    feet.append(FootWrench(w[:3], w[3:], placement.translation, placement.rotation))
+                    vertical[k] += (placement.rotation @ w[:3])[2]
+            with contextlib.suppress(NoSupportError, ValueError):
+                zmp[k] = zmp_from_foot_wrenches(feet)
+        polygon = _support_polygon(model, links[0])
+        return cls(zmp, vertical, tilt, polygon)
+
+
+def _rotation(q: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    return pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+
+
+def _support_polygon(model: Any, links: np.ndarray) -> tuple[float, float, float, float]:
+    """Both soles' bounding box on the ground (standing on the left sole at the origin)."""
+    model.standing_configuration(links, side=0)
+    corners = []
+    for side in (0, 1):
+        sole = model.sole_placement(side)
+        half = model.sole_boxes[side].size_m / 2.0
+        for dx in (-half[0], half[0]):
+            for dy in (-half[1], half[1]):
+                corners.append(sole.translation + sole.rotation @ np.array([dx, dy, 0.0]))
+    points = np.array(corners)
+    return (
+        float(points[:, 0].min()),
+        float(points[:, 0].max()),
+        float(points[:, 1].min()),
+        float(points[:, 1].max()),
+    )
+
+
+@dataclass(frozen=True)
+class HumanoidStandingExperiment(Experiment):
+    """Hold a posture in double support (see the module docstring); pushes optional."""
+
+    __test__ = False
+
+    name: str
+    title: str
+    duration_s: float
+    posture_rad: tuple[float, ...]
+    world: World = World()
+
+    def reference(self, time_s: float) -> np.ndarray:
+        return np.asarray(self.posture_rad)
+
+    def support(self, time_s: float) -> object:
+        from controller.humanoid import SupportState
+
+        return SupportState.DOUBLE
+
+    def metrics(self, run: RunData) -> dict[str, Any]:
+        kinematics = StandingKinematics.of(run)
+        settled = run.time_s >= run.experiment_start_s + SETTLE_S
+        desired = self._desired_zmp()
+        error = np.linalg.norm(kinematics.zmp_m - desired, axis=1)
+        deflection = np.abs(np.column_stack(run.per_joint("deflection_rad")))
+        metrics = {
+            "pelvis_tilt_rad": _max(kinematics.tilt_rad[settled]),
+            "max_deflection_rad": _max(deflection[settled]),
+            "zmp_max_error_m": _max(error[settled]),
+            "zmp_rms_error_m": float(np.sqrt(np.nanmean(error[settled] ** 2)))
+            if settled.any()
+            else None,
+            "fell": _fell(kinematics, run, self._weight_n()),
+        }
+        if self.world.pelvis_pushes:
+            metrics.update(self._push_metrics(run, kinematics))
+        return metrics
+
+    def _push_metrics(self, run: RunData, kinematics: StandingKinematics) -> dict[str, Any]:
+        push = self.world.pelvis_pushes[0]
+        start = push.start_s + run.experiment_start_s
+        before = np.flatnonzero(run.time_s < start)
+        if not before.size:
+            return {}
+        reference = kinematics.zmp_m[before[-1]]
+        distance = np.linalg.norm(kinematics.zmp_m - reference, axis=1)
+        after = run.time_s >= start
+        outside = np.flatnonzero(after & ~(distance <= RECOVERED_M))
+        period = float(np.median(np.diff(run.time_s)))
+        recovery = float(run.time_s[outside[-1]] + period - start) if outside.size else 0.0
+        return {"zmp_excursion_m": _max(distance[after]), "recovery_time_s": recovery}
+
+    @functools.cached_property
+    def _desired(self) -> tuple[np.ndarray, float]:
+        model = _leg_model()
+        q = model.standing_configuration(np.asarray(self.posture_rad), side=0)
+        return model.centre_of_mass(q)[:2], model.total_mass_kg * 9.81
+
+    def _desired_zmp(self) -> np.ndarray:
+        return self._desired[0]
+
+    def _weight_n(self) -> float:
+        return self._desired[1]
+
+    def marks(self, run: RunData) -> WorldMarks:
+        start = run.experiment_start_s
+        return WorldMarks(
+            pushes=tuple(
+                PushMark(p.start_s + start, p.duration_s, float(np.linalg.norm(p.force_n)))
+                for p in self.world.pelvis_pushes
+            ),
+            title=self.title,
+            experiment=self.name,
+        )
+
+    @property
+    def report_columns(self) -> tuple[Column, ...]:
+        return (
+            Column("pelvis_tilt_rad", "pelvis tilt [rad]", number(".4f")),
+            Column("max_deflection_rad", "max deflection [rad]", number(".4f")),
+            Column("zmp_max_error_m", "ZMP max error [m]", number(".4f")),
+            Column("zmp_rms_error_m", "ZMP rms error [m]", number(".4f")),
+            Column("zmp_excursion_m", "ZMP excursion [m]", number(".4f")),
+            Column("recovery_time_s", "recovery [s]", number(".2f")),
+            Column("fell", "fell", number("")),
+        )
+
+    def relations(self, entries: Sequence[RunEntry]) -> list[Relation]:
+        return standing_relations(self.name, entries)
+
+
+def _max(values: np.ndarray) -> float | None:
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    return float(finite.max()) if finite.size else None
+
+
+def _fell(kinematics: StandingKinematics, run: RunData, weight_n: float) -> bool:
+    x_min, x_max, y_min, y_max = kinematics.support_polygon
+    zmp = kinematics.zmp_m
+    outside = ~(
+        (zmp[:, 0] >= x_min - FALL_MARGIN_M)
+        & (zmp[:, 0] <= x_max + FALL_MARGIN_M)
+        & (zmp[:, 1] >= y_min - FALL_MARGIN_M)
+        & (zmp[:, 1] <= y_max + FALL_MARGIN_M)
+    )
+    unloaded = kinematics.vertical_n < 0.5 * weight_n
+    started = run.time_s >= run.experiment_start_s + SETTLE_S
+    period = float(np.median(np.diff(run.time_s))) if run.time_s.size > 1 else 0.005
+    window = max(1, round(FALL_TIME_S / period))
+    for bad in (outside & started, unloaded & started):
+        runs = np.convolve(bad.astype(int), np.ones(window, dtype=int), mode="valid")
+        if runs.size and runs.max() >= window:
+            return True
+    tilted = kinematics.tilt_rad[started]
+    return bool(np.any(tilted[np.isfinite(tilted)] > FALL_TILT_RAD))
+
+
+def standing_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
+    """What the paper says of standing on flexible joints (Sec. III-A, IV-C): the gravity
+    compensator keeps the posture the legs' springs would otherwise give away."""
+    gc = find(entries, exp, ControllerKind.GC)
+    pid = find(entries, exp, ControllerKind.PID)
+
+    def gc_helps() -> tuple[bool, str]:
+        with_gc = metric(gc, "zmp_max_error_m", "gc")
+        without = metric(pid, "zmp_max_error_m", "pid")
+        tilt_gc = metric(gc, "pelvis_tilt_rad", "gc")
+        tilt_pid = metric(pid, "pelvis_tilt_rad", "pid")
+        return tilt_gc <= tilt_pid, (
+            f"tilt {tilt_gc:.4f} vs {tilt_pid:.4f} rad, ZMP error {with_gc * 1e3:.1f} vs "
+            f"{without * 1e3:.1f} mm"
+        )
+
+    return [
+        check(
+            exp,
+            "the gravity compensator keeps the pelvis more upright than position control alone",
+            "GC makes the joints hold the desired angles under gravity (Sec. III-A)",
+            gc_helps,
+        )
+    ]
+
+
+# The lab's knee servo and the walking-ready posture (controller/humanoid/posture.py).
+def _walking_ready() -> tuple[float, ...]:
+    from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD
+
+    return tuple(WALKING_READY_LEG_ANGLES_RAD)
+
+
+STAND = HumanoidStandingExperiment(
+    name="stand",
+    title="DYROS-JET stands in the walking-ready posture (double support)",
+    duration_s=4.0,
+    posture_rad=_walking_ready(),
+)
+
+# A push on the pelvis while standing: 60 N forward for 0.2 s (12 N s; the paper pushes the
+# testbed, not the robot: the figures are this experiment's, chosen to move the ZMP a few cm).
+PUSH = HumanoidStandingExperiment(
+    name="push",
+    title="DYROS-JET standing, pushed at the pelvis (60 N forward, 0.2 s)",
+    duration_s=4.0,
+    posture_rad=_walking_ready(),
+    world=World(pelvis_pushes=(PelvisPush(start_s=2.0, duration_s=0.2, force_n=(60.0, 0, 0)),)),
+)
