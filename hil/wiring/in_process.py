@@ -20,6 +20,7 @@ from drivers.joint_bus import (
     BusError,
     BusFault,
     DeviceRole,
+    Diagnostic,
     JointBus,
     JointDevices,
     JointSample,
@@ -30,6 +31,8 @@ from hil.wiring.emulation import emulator_spec
 from sim_backend.direct import DirectTestbed
 from sim_backend.scenario import FaultEvent
 from sim_backend.server import EmulatorSpec
+
+INPUT_VOLTAGE_V_PER_UNIT = 0.1  # Present Input Voltage (623) is in 0.1 V (e-Manual H54)
 
 
 class InProcessJointBus(JointBus):
@@ -91,7 +94,19 @@ class InProcessJointBus(JointBus):
                     BusFault(i, DeviceRole.LINK_SENSOR, devices[i].link_sensor, "no answer")
                 )
         sample.extra["contact_force_n"] = reading.contact_force_n
+        self._diagnostics(testbed, sample)
         return sample
+
+    def _diagnostics(self, testbed: DirectTestbed, sample: JointSample) -> None:
+        """Temperature and input voltage from the control table, as the chain reads them."""
+        temperature = np.full(self.n_joints, np.nan)
+        voltage = np.full(self.n_joints, np.nan)
+        for i, device in enumerate(testbed.robot.devices):
+            if sample.motor_valid[i]:
+                temperature[i] = device.item("Present Temperature")
+                voltage[i] = device.item("Present Input Voltage") * INPUT_VOLTAGE_V_PER_UNIT
+        sample.diagnostics[Diagnostic.ACTUATOR_TEMPERATURE_C] = temperature
+        sample.diagnostics[Diagnostic.ACTUATOR_INPUT_VOLTAGE_V] = voltage
 
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:
         testbed = self._require()
