@@ -118,5 +118,42 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--cycles", type=int, default=None, help="cycles per measurement")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
 
+    _add_bringup(sub)
     sub.add_parser("config", help="print the sample configuration file")
     return parser
+
+
+def _add_bringup(sub: argparse._SubParsersAction) -> None:
+    monitor = sub.add_parser(
+        "monitor",
+        help="a live table of every joint, read-only (torque is left as found)",
+        description="Reads every joint at a steady rate and flags what is outside the "
+        "configuration's limits. Nothing is written to any actuator; Ctrl-C leaves everything "
+        "as it was.",
+    )
+    monitor.add_argument("--config", type=Path, help="configuration file (default: built-in)")
+    monitor.add_argument("--json", action="store_true", help="one JSON object per sample line")
+    monitor.add_argument("--rate", type=float, default=10.0, help="samples per second (10)")
+    monitor.add_argument("--duration", type=float, help="stop after this many seconds")
+    _add_connection_overrides(monitor)
+
+    calibrate = sub.add_parser(
+        "calibrate",
+        help="measure the zero offsets at the reference pose (read-only)",
+        description="Hold every joint still at its reference pose (torque off, gear unloaded); "
+        "prints motor_offset_rad and encoder_offset_rad per joint, or with --write updates "
+        "the --config file in place (a backup is kept).",
+    )
+    calibrate.add_argument("--config", type=Path, help="configuration file (default: built-in)")
+    calibrate.add_argument("--seconds", type=float, default=2.0, help="averaging window [s] (2)")
+    calibrate.add_argument(
+        "--pose",
+        action="append",
+        default=[],
+        metavar="[NAME=]RAD",
+        help="the joint angle the robot is held at (default 0 for every joint)",
+    )
+    calibrate.add_argument(
+        "--write", action="store_true", help="update the --config file (keeps FILE.bak)"
+    )
+    _add_connection_overrides(calibrate)
