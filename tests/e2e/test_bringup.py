@@ -133,7 +133,7 @@ def test_calibrate_recovers_the_planted_offsets_within_one_count(tmp_path: Path)
     joint = calibrated.joints[0]
     motor_error = abs(joint.motor_offset_rad - PLANTED["motor_offset_rad"])
     link_error = abs(joint.encoder_offset_rad - PLANTED["encoder_offset_rad"])
-    print(f"calibration error: motor {motor_error:.1e}, link {link_error:.1e} rad ({elapsed:.1f} s)")
+    print(f"calibration error: motor {motor_error:.1e}, link {link_error:.1e} rad, {elapsed:.1f} s")
     assert motor_error <= MOTOR_COUNT_RAD
     assert link_error <= LINK_COUNT_RAD
     # the file was edited, not re-serialised: only the two values changed, a backup was kept
