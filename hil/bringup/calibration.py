@@ -16,7 +16,8 @@ hangs on the spring deflects it by m g r / K (3.1 mrad on the paper's testbed).
 Direction agreement: with the link still, nothing tells the two encoders' senses apart. If the
 joint moves during the window (someone moves it by hand, torque off), the link and motor
 increments are compared: their least-squares slope is +1 when the senses agree and -1 when one
-of motor_direction / encoder_direction is wrong. Which one (against the joint's positive sense)
+of motor_direction / encoder_direction is wrong (trusted only when the two are correlated, |r|
+at least DIRECTION_MIN_CORRELATION). Which one (against the joint's positive sense)
 only a person can tell: move the joint by hand in its positive direction while `hil monitor`
 runs; both angles must increase. A joint that moved is not at rest: its offsets are not given.
 
@@ -39,7 +40,7 @@ from hil.config import Config, ConfigError, parse_config
 
 AT_REST_PEAK_TO_PEAK_RAD = 1e-3  # more motion than this in the window: not at rest
 DIRECTION_MIN_MOTION_RAD = 0.02  # less motion than this: the direction check cannot tell
-DIRECTION_MIN_SLOPE = 0.5  # |link/motor slope| below this: the encoders do not move together
+DIRECTION_MIN_CORRELATION = 0.9  # |correlation| below this: the two do not move together
 OFFSET_KEYS = ("motor_offset_rad", "encoder_offset_rad")
 
 
@@ -102,8 +103,9 @@ def direction_check(motor_rad: np.ndarray, link_rad: np.ndarray) -> tuple[Direct
     if motor.size < 3 or np.ptp(motor) < DIRECTION_MIN_MOTION_RAD:
         return DirectionCheck.NOT_MOVED, math.nan
     dm, dl = motor - motor.mean(), link - link.mean()
-    slope = float(dm @ dl / (dm @ dm))
-    if abs(slope) < DIRECTION_MIN_SLOPE:
+    covariance = float(dm @ dl)
+    slope = covariance / float(dm @ dm)
+    if abs(covariance) < DIRECTION_MIN_CORRELATION * math.sqrt(float(dm @ dm) * float(dl @ dl)):
         return DirectionCheck.INCONCLUSIVE, slope
     return (DirectionCheck.AGREE if slope > 0 else DirectionCheck.DISAGREE), slope
 
