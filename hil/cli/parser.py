@@ -8,7 +8,7 @@ from pathlib import Path
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
 from hil.experiments import EXPERIMENTS
 
-BENCH_TARGETS = ("bus", "loop")
+BENCH_TARGETS = ("bus", "loop", "log")
 
 
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
@@ -70,6 +70,20 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         help="reboot actuators that report a hardware error, then home slowly, then run",
     )
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    run.add_argument(
+        "--no-mcap", action="store_true", help="do not write run.mcap beside the CSV log"
+    )
+    run.add_argument(
+        "--live",
+        action="store_true",
+        help="serve the run's signals to Foxglove (WebSocket) while it goes",
+    )
+    run.add_argument(
+        "--live-host",
+        default="127.0.0.1",
+        help="address the live server listens on (default: loopback only)",
+    )
+    run.add_argument("--live-port", type=int, default=8765, help="its port (8765; 0: any free)")
     run.add_argument(
         "--current-guard",
         choices=["on", "off"],

@@ -28,6 +28,7 @@ from drivers.joint_bus import JointBus
 from hil.config import Config
 from hil.experiments import Experiment
 from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, run_experiment
+from hil.output.channels import MessageSink
 from hil.output.plots import plot_run
 from hil.output.records import RunResult
 from hil.output.rundir import load_run, timestamp, unique_dir
@@ -80,6 +81,8 @@ class Session:
     plots: bool = True
     json_output: bool = False
     quiet: bool = False
+    mcap: bool = True  # run.mcap beside the CSV log
+    sinks: tuple[MessageSink, ...] = ()  # the live view (`hil run --live`), owned by the caller
 
     @property
     def description(self) -> str:
@@ -182,6 +185,8 @@ class Session:
             reboot_first=reboot_first,
             on_event=None if self.quiet else self.say,
             on_progress=self._progress(choice.label),
+            mcap=self.mcap,
+            sinks=self.sinks,
         )
         clock = self.clock()
         self.say(
