@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -29,6 +30,7 @@ from hil.config import Config
 from hil.experiments import IMPACT
 from hil.loop import LockstepClock, RunRequest, run_experiment
 from hil.output.channels import ChannelSet
+from hil.output.progress import Progress
 from hil.vocabulary import ControllerChoice, ControllerKind
 from hil.wiring.in_process import in_process_bus
 
@@ -78,6 +80,11 @@ class _Viewer:
         self.process.start()
 
     def stop(self) -> int:
+        """After the messages in flight have arrived (the count stays put for 0.2 s)."""
+        last, deadline = -1, time.monotonic() + 3.0
+        while self.received.value != last and time.monotonic() < deadline:
+            last = self.received.value
+            time.sleep(0.2)
         self.done.set()
         self.process.join(timeout=10)
         if self.process.is_alive():
@@ -148,15 +155,24 @@ def _live_case(config: Config, ticks: int, out_dir: Path) -> tuple[np.ndarray, i
 
 
 def run_bench_log(
-    config: Config, ticks: int = DEFAULT_LOG_TICKS, say: Callable[[str], None] = lambda _t: None
+    config: Config,
+    ticks: int = DEFAULT_LOG_TICKS,
+    say: Callable[[str], None] = lambda _t: None,
+    progress: bool | None = False,
 ) -> dict[str, Any]:
+    """progress: a bar on stderr (None: when it is a terminal) instead of `say` lines."""
     tables: dict[str, list[np.ndarray]] = {case: [] for case in CASES}
     received: list[int] = []
-    with tempfile.TemporaryDirectory(prefix="hil-bench-log-") as tmp:
+    bar = Progress(ROUNDS * len(CASES), unit="runs", desc="bench log", enabled=progress)
+    with tempfile.TemporaryDirectory(prefix="hil-bench-log-") as tmp, bar:
         for round_index in range(ROUNDS):
             order = CASES[round_index % len(CASES) :] + CASES[: round_index % len(CASES)]
-            for case in order:
-                say(f"bench log: round {round_index + 1}/{ROUNDS}, {case}, {ticks} ticks ...")
+            for number, case in enumerate(order, start=round_index * len(CASES)):
+                what = f"round {round_index + 1}/{ROUNDS}, {case}, {ticks} ticks"
+                if bar.enabled:
+                    bar.update_to(number, what)
+                else:
+                    say(f"bench log: {what} ...")
                 out_dir = Path(tmp) / f"{round_index}-{case.replace('+', '-')}"
                 if case == "csv+mcap+live":
                     table, count = _live_case(config, ticks, out_dir)

@@ -33,7 +33,12 @@ def cmd_bench(args: argparse.Namespace) -> int:
             report = run_bench_bus(config, cycles or DEFAULT_BUS_CYCLES, say=say)
             text = bus_report_text(report)
         elif args.what == "log":
-            report = run_bench_log(config, cycles or DEFAULT_LOG_TICKS, say=say)
+            report = run_bench_log(
+                config,
+                cycles or DEFAULT_LOG_TICKS,
+                say=say,
+                progress=None if not args.json else False,
+            )
             text = log_report_text(report)
         else:
             report = run_bench_loop(config, cycles or DEFAULT_LOOP_TICKS, say=say)
