@@ -36,7 +36,7 @@ class Progress:
                 file=self.stream,
                 dynamic_ncols=True,
                 bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.0f} {unit} "
-                "[{elapsed}<{remaining}] {postfix}",
+                "[{elapsed}<{remaining}{postfix}]",
             )
 
     def update_to(self, done: float, text: str | None = None) -> None:
