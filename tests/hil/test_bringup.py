@@ -192,3 +192,21 @@ def test_the_monitor_flags_what_is_outside_the_configuration() -> None:
     assert joint.temperature_c > 0 and joint.input_voltage_v > 0
     record = status.record()["joints"][0]
     assert record["fault"] == "none" and "out_of_range" in record["flags"]
+
+
+def test_bringup_options_are_checked_before_any_port_is_opened(capsys) -> None:
+    from hil.cli import main
+    from hil.cli.calibrate import parse_poses
+
+    assert main(["monitor", "--rate", "0"]) == 2
+    assert "--rate" in capsys.readouterr().err
+    assert main(["calibrate", "--write"]) == 2  # --write needs the file to write
+    assert "--config" in capsys.readouterr().err
+    assert main(["calibrate", "--seconds", "nan"]) == 2
+    config = load_config()
+    assert parse_poses(["0.3"], config) == {"testbed": 0.3}
+    assert parse_poses(["0.3", "testbed=-0.1"], config) == {"testbed": -0.1}
+    with pytest.raises(ConfigError, match="no joint 'knee'"):
+        parse_poses(["knee=0.1"], config)
+    with pytest.raises(ConfigError, match="NAME=RAD"):
+        parse_poses(["testbed=up"], config)
