@@ -2,12 +2,14 @@
 
 One module per block of the paper: model (1)-(4), (20); LQR (21)-(24); DOB (9)-(11);
 gravity compensator (5)-(8); composition (25); state estimation from the encoders; the four
-controllers the loop runs ("pid", "gc", "gc+lqr", "gc+lqr+dob"). Imports nothing of ours.
+controllers the loop runs (`ControllerKind`: "pid", "gc", "gc+lqr", "gc+lqr+dob"). Imports
+nothing of ours; device facts (encoder resolutions, servo figures) come from the caller.
 """
 
 from controller.composition import COMPOSITION_READINGS, Composition, CompositionReading
 from controller.controllers import (
     CONTROLLER_NAMES,
+    LAB_KDIST_RAMP_S,
     ControllerKind,
     ControllerParams,
     ControllerUsageError,
@@ -15,11 +17,17 @@ from controller.controllers import (
     JointController,
     make_controller,
 )
-from controller.dob import LAB_DOB_CUTOFF_HZ, DisturbanceObserver, q_filter_pole
+from controller.dob import (
+    LAB_DOB_CUTOFF_HZ,
+    LAB_Q_FILTER_POLE,
+    CubicRamp,
+    DisturbanceObserver,
+    q_filter_pole,
+)
 from controller.estimation import (
-    LINK_ENCODER_RESOLUTION_RAD,
-    MOTOR_ENCODER_RESOLUTION_RAD,
+    LINK_VELOCITY_INCREMENTS,
     FlexibleJointStateEstimator,
+    LinkVelocityIncrement,
 )
 from controller.gravity import (
     GravityCompensator,
@@ -29,6 +37,8 @@ from controller.gravity import (
     support_force_split,
 )
 from controller.lqr import (
+    LQR_DESIGNS,
+    LqrDesign,
     LqrWeights,
     TrackingGain,
     design_continuous_tracking_lqr,
@@ -45,20 +55,25 @@ __all__ = [
     "COMPOSITION_READINGS",
     "CONTROLLER_NAMES",
     "LAB_DOB_CUTOFF_HZ",
-    "LINK_ENCODER_RESOLUTION_RAD",
-    "MOTOR_ENCODER_RESOLUTION_RAD",
+    "LAB_KDIST_RAMP_S",
+    "LAB_Q_FILTER_POLE",
+    "LINK_VELOCITY_INCREMENTS",
+    "LQR_DESIGNS",
     "Composition",
     "CompositionReading",
     "ControlTerms",
     "ControllerKind",
     "ControllerParams",
     "ControllerUsageError",
+    "CubicRamp",
     "DisturbanceObserver",
     "FlexibleJointParams",
     "FlexibleJointStateEstimator",
     "GravityCompensator",
     "GravityModel",
     "JointController",
+    "LinkVelocityIncrement",
+    "LqrDesign",
     "LqrWeights",
     "NoGravity",
     "PendulumGravity",

@@ -11,8 +11,9 @@ u for the actuator's position servo; angles in rad; arrays of length n.
 
 Each tick the loop calls `step(theta_m, theta_j, theta_d)`, sends the goal (possibly clipped by
 the supervisor), then `notify_applied(goal_sent)`: the DOB and the accumulation use what was
-really sent (anti-windup). `reset` must come first and gives a bumpless start from the present
-motor angle. Calling out of this order raises `ControllerUsageError`.
+really sent (anti-windup). `reset` must come first and gives a bumpless start from the goal in
+force (the hold or homing goal the servo was driven with; see `JointController.reset`). Calling
+out of this order raises `ControllerUsageError`.
 """
 
 from __future__ import annotations
@@ -24,27 +25,31 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controller.composition import COMPOSITION_READINGS, Composition, CompositionReading
-from controller.dob import LAB_DOB_CUTOFF_HZ, DisturbanceObserver
-from controller.estimation import FlexibleJointStateEstimator
+from controller.dob import LAB_DOB_CUTOFF_HZ, DisturbanceObserver, resolve_q_filter_pole
+from controller.estimation import (
+    LINK_VELOCITY_INCREMENTS,
+    FlexibleJointStateEstimator,
+    LinkVelocityIncrement,
+)
 from controller.gravity import GravityCompensator, GravityModel
 from controller.lqr import (
     COUPLINGS,
+    LQR_DESIGNS,
     Coupling,
+    LqrDesign,
     LqrWeights,
     TrackingGain,
     design_discrete_tracking_lqr,
+    servo_discretisation,
 )
-from controller.model import (
-    DISCRETISATIONS,
-    Discretisation,
-    FlexibleJointParams,
-    per_joint_array,
-    validate_sm,
-)
+from controller.model import FlexibleJointParams, per_joint_array, validate_sm
+
+LAB_KDIST_RAMP_S = 0.1  # the lab's compliant_tick: 0.1 s x 200 Hz = 20 ticks, cubic
 
 
 class ControllerKind(enum.StrEnum):
-    """The four controllers of Sec. IV; the value is the name users type (`--controller`)."""
+    """The four controllers of the paper's comparison (Sec. IV); the value is the name users
+    type (`--controller`)."""
 
     PID = "pid"
     GC = "gc"
@@ -74,24 +79,38 @@ class ControllerParams:
     joints: K, D, Kp per joint (the nominal model of (1), (4)).
     lqr_weights: Qe, Qx, R of (22) (default: the paper's 10 and 1, as the lab coded them).
     kdist: DOB weighting gain per joint (scalar = all joints); the paper's testbed uses 1.0
-        and 0.5, the humanoid 0.2 scheduled to 1.0 at landing. Changeable while running.
-    dob_cutoff_hz: Q(s) cut-off (default 11.35 Hz = the lab's 0.7 pole at 200 Hz).
-    composition: "accumulated" (the lab's code, default) or "literal"; see composition.py
-        (accumulated with Kdist = 1 tolerates a true servo gain at most ~22 % above the nominal
-        Kp for light links; literal holds +-30 %).
-    discretisation: "zoh" (default) or "euler" (the lab's), for the LQR model and Pn^-1.
+        and 0.5, the humanoid 0.2 scheduled to 1.0 at landing. Changeable while running
+        (`set_kdist`), along a cubic ramp of kdist_ramp_s.
+    kdist_ramp_s: how long a Kdist change takes (default the lab's 0.1 s = 20 ticks at 200 Hz;
+        0 = a step); rounded to whole ticks.
+    dob_cutoff_hz / dob_filter_pole: the Q filter, by its cut-off or by its pole (at most one;
+        neither: the lab's pole 0.7 at 200 Hz, i.e. `LAB_DOB_CUTOFF_HZ` = 11.3533 Hz).
+    composition: "accumulated" (the lab's code, default), "literal" or "accumulated-integral"
+        (bounded contact against an integrating servo; needs dob_integral_time_s); see
+        composition.py.
+    dob_integral_time_s: Ti_d of "accumulated-integral" (the servo's velocity-loop integral
+        time makes the contact force constant; only with that reading).
+    discretisation: the LQR design, "zoh" (default), "euler" (the lab's) or "continuous-cost"
+        (the paper's cost (22) over each tick); the DOB's Pn^-1 is Euler with "euler", ZOH
+        otherwise (`controller.lqr.servo_discretisation`).
     lqr_coupling: "full" (whole Sm, default) or "diagonal" (the lab's: diagonal of Sm only).
     link_velocity_cutoff_hz: None = plain backward difference (default), else a low pass.
+    link_velocity_increment: "backward-difference" (default) or "zero" (the lab's); see
+        controller/estimation.py.
     """
 
     joints: FlexibleJointParams
     lqr_weights: LqrWeights = field(default_factory=LqrWeights)
     kdist: np.ndarray | float = 1.0
-    dob_cutoff_hz: float = LAB_DOB_CUTOFF_HZ
+    kdist_ramp_s: float = LAB_KDIST_RAMP_S
+    dob_cutoff_hz: float | None = None
+    dob_filter_pole: float | None = None
     composition: CompositionReading = "accumulated"
-    discretisation: Discretisation = "zoh"
+    dob_integral_time_s: float | None = None
+    discretisation: LqrDesign = "zoh"
     lqr_coupling: Coupling = "full"
     link_velocity_cutoff_hz: float | None = None
+    link_velocity_increment: LinkVelocityIncrement = "backward-difference"
 
     def __post_init__(self) -> None:
         if not isinstance(self.joints, FlexibleJointParams):
@@ -103,15 +122,38 @@ class ControllerParams:
         object.__setattr__(
             self, "kdist", per_joint_array(self.kdist, "kdist", self.joints.n_joints)
         )
-        if not (np.isfinite(self.dob_cutoff_hz) and self.dob_cutoff_hz > 0):
+        if not (np.isfinite(self.kdist_ramp_s) and self.kdist_ramp_s >= 0):
+            raise ValueError(f"kdist_ramp_s must be finite and >= 0, got {self.kdist_ramp_s}")
+        if self.dob_cutoff_hz is not None and self.dob_filter_pole is not None:
+            raise ValueError("give dob_cutoff_hz or dob_filter_pole, not both")
+        if self.dob_cutoff_hz is not None and not (
+            np.isfinite(self.dob_cutoff_hz) and self.dob_cutoff_hz > 0
+        ):
             raise ValueError(f"dob_cutoff_hz must be finite and > 0, got {self.dob_cutoff_hz}")
+        if self.dob_filter_pole is not None and not (
+            np.isfinite(self.dob_filter_pole) and 0 <= self.dob_filter_pole < 1
+        ):
+            raise ValueError(f"dob_filter_pole must be in [0, 1), got {self.dob_filter_pole}")
         if self.composition not in COMPOSITION_READINGS:
             raise ValueError(
                 f"composition must be one of {COMPOSITION_READINGS}, got {self.composition!r}"
             )
-        if self.discretisation not in DISCRETISATIONS:
+        integral = self.dob_integral_time_s
+        if (self.composition == "accumulated-integral") != (integral is not None):
             raise ValueError(
-                f"discretisation must be one of {DISCRETISATIONS}, got {self.discretisation!r}"
+                "dob_integral_time_s is required by composition 'accumulated-integral' and "
+                f"refused otherwise (composition {self.composition!r}, {integral})"
+            )
+        if integral is not None and not (np.isfinite(integral) and integral > 0):
+            raise ValueError(f"dob_integral_time_s must be finite and > 0, got {integral}")
+        if self.discretisation not in LQR_DESIGNS:
+            raise ValueError(
+                f"discretisation must be one of {LQR_DESIGNS}, got {self.discretisation!r}"
+            )
+        if self.link_velocity_increment not in LINK_VELOCITY_INCREMENTS:
+            raise ValueError(
+                f"link_velocity_increment must be one of {LINK_VELOCITY_INCREMENTS}, "
+                f"got {self.link_velocity_increment!r}"
             )
         if self.lqr_coupling not in COUPLINGS:
             raise ValueError(f"lqr_coupling must be one of {COUPLINGS}, got {self.lqr_coupling!r}")
@@ -122,6 +164,15 @@ class ControllerParams:
     @property
     def n_joints(self) -> int:
         return self.joints.n_joints
+
+    def q_filter_pole(self, dt_s: float) -> float:
+        """The DOB's Q-filter pole at period dt_s (see dob_cutoff_hz / dob_filter_pole)."""
+        if self.dob_cutoff_hz is None and self.dob_filter_pole is None:
+            return resolve_q_filter_pole(LAB_DOB_CUTOFF_HZ, None, dt_s)
+        return resolve_q_filter_pole(self.dob_cutoff_hz, self.dob_filter_pole, dt_s)
+
+    def kdist_ramp_ticks(self, dt_s: float) -> int:
+        return int(round(self.kdist_ramp_s / dt_s))
 
     @classmethod
     def paper(cls, n_joints: int = 1, **overrides: object) -> ControllerParams:
@@ -171,13 +222,30 @@ class JointController(abc.ABC):
         return array
 
     def reset(
-        self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray, reference_rad: np.ndarray
+        self,
+        motor_angle_rad: np.ndarray,
+        link_angle_rad: np.ndarray,
+        reference_rad: np.ndarray,
+        goal_in_force_rad: np.ndarray | None = None,
     ) -> None:
-        """Bumpless start: assume the servo rests at `motor_angle_rad` with that angle as goal."""
+        """Bumpless start from the goal the servo is being driven with.
+
+        goal_in_force_rad: the goal sent on the last tick before this controller takes over
+        (the hold or homing goal). Under a load the servo rests short of its goal (by
+        tau / k_s: gravity on the testbed, ~8 mrad), so the measured motor angle is NOT the goal
+        in force; starting from it would step the goal by that lag. None: take the measured
+        motor angle (only right when the servo rests exactly at its goal)."""
+        motor = self._joint_array(motor_angle_rad, "motor_angle_rad")
+        goal = (
+            motor
+            if goal_in_force_rad is None
+            else self._joint_array(goal_in_force_rad, "goal_in_force_rad")
+        )
         self._reset(
-            self._joint_array(motor_angle_rad, "motor_angle_rad"),
+            motor,
             self._joint_array(link_angle_rad, "link_angle_rad"),
             self._joint_array(reference_rad, "reference_rad"),
+            goal,
         )
         self._phase = "ready"
 
@@ -226,7 +294,8 @@ class JointController(abc.ABC):
         self._phase = "ready"
 
     def set_kdist(self, kdist: np.ndarray | float) -> None:
-        """Change the DOB gain per joint between ticks (only controllers with a DOB)."""
+        """Change the DOB gain per joint between ticks (only controllers with a DOB); the change
+        ramps over ControllerParams.kdist_ramp_s."""
         raise ControllerUsageError(
             f"{self.name!r} has no disturbance observer; set_kdist needs 'gc+lqr+dob'"
         )
@@ -237,7 +306,9 @@ class JointController(abc.ABC):
         """The last tick's parts (copies)."""
 
     @abc.abstractmethod
-    def _reset(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> None: ...
+    def _reset(
+        self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray, goal: np.ndarray
+    ) -> None: ...
 
     @abc.abstractmethod
     def _step(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> np.ndarray: ...
@@ -257,10 +328,12 @@ class _FeedForwardController(JointController):
         self._ug = np.zeros(n_joints)
         self._u = np.zeros(n_joints)
 
-    def _reset(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> None:
+    def _reset(
+        self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray, goal: np.ndarray
+    ) -> None:
         self._reference[:] = reference
         self._ug[:] = 0.0
-        self._u[:] = motor
+        self._u[:] = goal
 
     def _resync(self, motor: np.ndarray, link: np.ndarray) -> None:
         return  # no sample history: u depends on the reference only
@@ -301,19 +374,28 @@ class _LqrController(JointController):
         self.dt_s = dt_s
         self._gain = gain
         self._compensator = compensator
-        self._estimator = FlexibleJointStateEstimator(n, dt_s, params.link_velocity_cutoff_hz)
+        self._estimator = FlexibleJointStateEstimator(
+            n, dt_s, params.link_velocity_cutoff_hz, params.link_velocity_increment
+        )
         self._dob = (
             DisturbanceObserver(
                 params.joints.servo_gain_per_s,
-                params.dob_cutoff_hz,
+                None,
                 dt_s,
                 params.kdist,
-                params.discretisation,
+                servo_discretisation(params.discretisation),
+                filter_pole=params.q_filter_pole(dt_s),
+                kdist_ramp_ticks=params.kdist_ramp_ticks(dt_s),
             )
             if use_dob
             else None
         )
-        self._composition = Composition(n, params.composition)
+        integral_time = params.dob_integral_time_s
+        self._composition = Composition(
+            n,
+            params.composition,
+            None if integral_time is None else min(1.0, dt_s / integral_time),
+        )
         self._error = np.zeros(n)
         self._increment = np.zeros(n)
         self._scratch = np.zeros(n)
@@ -332,16 +414,26 @@ class _LqrController(JointController):
         self._gain = gain
 
     def set_kdist(self, kdist: np.ndarray | float) -> None:
+        """Ramp the DOB gain to `kdist` over params.kdist_ramp_s (the lab's cubic)."""
         if self._dob is None:
             super().set_kdist(kdist)
             return
         self._dob.set_kdist(kdist)
 
-    def _reset(self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray) -> None:
+    @property
+    def kdist(self) -> np.ndarray:
+        """The DOB gain of the last tick (during a ramp: the ramp's value)."""
+        if self._dob is None:
+            raise ControllerUsageError(f"{self.name!r} has no disturbance observer")
+        return self._dob.kdist
+
+    def _reset(
+        self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray, goal: np.ndarray
+    ) -> None:
         self._estimator.reset(motor, link)
         if self._dob is not None:
             self._dob.reset(motor)
-        self._composition.reset(motor, self._compensator.input_rad(reference))
+        self._composition.reset(goal, self._compensator.input_rad(reference))
 
     def _resync(self, motor: np.ndarray, link: np.ndarray) -> None:
         self._estimator.resync(motor, link)
@@ -384,21 +476,24 @@ class _LqrController(JointController):
 
 
 def make_controller(
-    name: str,
+    name: ControllerKind | str,
     params: ControllerParams,
     *,
     sm: np.ndarray,
     dt_s: float,
     gravity: GravityModel,
 ) -> JointController:
-    """Build one of CONTROLLER_NAMES for n = params.n_joints joints at loop period dt_s.
+    """Build one of `ControllerKind` (or its name) for n = params.n_joints joints at period dt_s.
 
     sm: Sm of (19), n x n (1-DoF testbed: `controller.model.single_link_sm(I_link)`).
     gravity: the model whose holding torque the compensator feeds forward ("pid" ignores it).
     """
-    if name not in CONTROLLER_NAMES:
-        raise ValueError(f"unknown controller {name!r}; expected one of {CONTROLLER_NAMES}")
-    kind = ControllerKind(name)
+    try:
+        kind = ControllerKind(name)
+    except ValueError:
+        raise ValueError(
+            f"unknown controller {name!r}; expected one of {CONTROLLER_NAMES}"
+        ) from None
     if not isinstance(params, ControllerParams):
         raise TypeError(f"params must be ControllerParams, got {type(params).__name__}")
     if not (np.isfinite(dt_s) and dt_s > 0):

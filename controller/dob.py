@@ -23,9 +23,24 @@ Discrete form, at the loop period dt (what runs; exact for the sampled nominal s
 
 With the sampled nominal servo and a disturbance held over each tick, raw(k) = d(k-1) exactly, so
 d -> d_hat is Kdist (1 - alpha) / (z - alpha): the zero-order-hold equivalent of Kdist Q(s)
-(pole matching alpha = exp(-wc dt) is exactly that equivalent). The lab's filter
-q(k) = 0.7 q(k-1) + 0.3 raw(k) at 200 Hz is fc = -ln(0.7) / (2 pi 0.005 s) = 11.35 Hz under
-this mapping (`LAB_DOB_CUTOFF_HZ`, the default).
+(pole matching alpha = exp(-wc dt) is exactly that equivalent: the filter's response to a held
+step is 1 - exp(-wc k dt), the continuous step response at the ticks).
+
+The filter pole, said once. The lab's filter is q(k) = 0.7 q(k-1) + 0.3 raw(k) at 200 Hz
+(`LAB_Q_FILTER_POLE`), i.e. fc = -ln(0.7) / (2 pi 0.005 s) = 11.3533 Hz under this mapping
+(`LAB_DOB_CUTOFF_HZ`, the default of `ControllerParams`). A cut-off rounded to 11.4 Hz (the
+testbed configuration's) gives alpha = exp(-2 pi 11.4 0.005) = 0.69897, not 0.7: the lab's values
+are reached exactly with the cut-off `LAB_DOB_CUTOFF_HZ` or by giving the pole itself
+(`filter_pole=0.7`, `ControllerParams(dob_filter_pole=0.7)`).
+
+Kdist changes ramp (the humanoid switches Kdist by walking phase: 0.2 in stance, 1.0 on the
+landing leg). `set_kdist` does not step the gain: it moves along the lab's cubic with zero slope
+at both ends over `kdist_ramp_ticks` updates (`CubicRamp`; the lab: 20 ticks = 0.1 s at 200 Hz).
+What the ramp bounds depends on the reading of (25) (`controller.composition`): in "literal"
+the goal carries Kdist q, so a step in Kdist would step the goal by dKdist q, and the ramp limits
+the goal's increment to 1.5 |dKdist q| / N per tick; in the accumulated readings the goal is a
+sum of Kdist q, so a step in Kdist steps the goal's RATE by dKdist q per tick, and the ramp limits
+the change of the per-tick increment to 1.5 |dKdist q| / N.
 
 Which command the DOB compares against: u_sent, the whole goal actually written to the servo at
 the previous tick, gravity input ug included and after any clipping by the supervisor. Pn^-1
@@ -35,14 +50,15 @@ output without its gravity offset, so its DOB reported the offset itself as a di
 the accumulated reading of (25) that undoes the gravity feed-forward until the LQR balances it
 (a static link error of Kdist ug / error_gain). See `controller.composition`.
 
-Kdist is applied after the filter, per joint, and `set_kdist` between ticks keeps the filter
-state: the output changes by exactly (Kdist_new - Kdist_old) q(k), nothing else.
+Kdist is applied after the filter, per joint, and a Kdist change keeps the filter state: the
+output changes by exactly (Kdist(k) - Kdist(k-1)) q(k) at each tick of the ramp, nothing else.
 
-Noise: the motor encoder's quantum q_m = 2 pi / 501,923 rad enters raw(k) as
-(eps(k) - a eps(k-1)) / b with eps white, uniform over a quantum (variance q_m^2 / 12): rms
-q_m sqrt((1 + a^2) / 12) / b = 1.0e-4 rad at Kp = 10, 200 Hz (ZOH). After Q:
-rms q_m (1 - alpha) sqrt((1 + (alpha - a)^2 / (1 - alpha^2)) / 12) / b = 2.4e-5 rad
-(`quantisation_noise_rms_rad`); for scale, 1 N m on a servo of 2000 N m/rad stiffness is 5e-4 rad.
+Noise, for a motor encoder of quantum q_m [rad] (the caller passes it; for the testbed's H54,
+2 pi / 501,923 = 1.25e-5 rad): the quantisation error enters raw(k) as (eps(k) - a eps(k-1)) / b
+with eps white, uniform over a quantum (variance q_m^2 / 12): rms q_m sqrt((1 + a^2) / 12) / b
+(1.0e-4 rad for that q_m at Kp = 10, 200 Hz, ZOH). After Q:
+rms q_m (1 - alpha) sqrt((1 + (alpha - a)^2 / (1 - alpha^2)) / 12) / b (2.4e-5 rad;
+`quantisation_noise_rms_rad`); for scale, 1 N m on a servo of 2000 N m/rad stiffness is 5e-4 rad.
 """
 
 from __future__ import annotations
@@ -67,13 +83,71 @@ def q_filter_pole(cutoff_hz: float, dt_s: float) -> float:
 
 
 def q_filter_cutoff_hz(pole: float, dt_s: float) -> float:
-    """Inverse of `q_filter_pole`: fc = -ln(alpha) / (2 pi dt)."""
-    if not 0.0 < pole < 1.0:
-        raise ValueError(f"filter pole must be in (0, 1), got {pole}")
-    return -math.log(pole) / (2.0 * math.pi * dt_s)
+    """Inverse of `q_filter_pole`: fc = -ln(alpha) / (2 pi dt) (alpha = 0: no filter, inf)."""
+    if not 0.0 <= pole < 1.0:
+        raise ValueError(f"filter pole must be in [0, 1), got {pole}")
+    return math.inf if pole == 0.0 else -math.log(pole) / (2.0 * math.pi * dt_s)
 
 
 LAB_DOB_CUTOFF_HZ = q_filter_cutoff_hz(LAB_Q_FILTER_POLE, LAB_LOOP_PERIOD_S)  # 11.35 Hz
+
+
+def resolve_q_filter_pole(cutoff_hz: float | None, filter_pole: float | None, dt_s: float) -> float:
+    """The Q-filter pole from exactly one of a cut-off [Hz] or the pole itself."""
+    if (cutoff_hz is None) == (filter_pole is None):
+        raise ValueError("give the DOB filter either a cut-off in Hz or its pole, not both/neither")
+    if filter_pole is not None:
+        if not (np.isfinite(filter_pole) and 0.0 <= filter_pole < 1.0):
+            raise ValueError(f"the DOB filter pole must be in [0, 1), got {filter_pole}")
+        return float(filter_pole)
+    assert cutoff_hz is not None
+    return q_filter_pole(cutoff_hz, dt_s)
+
+
+class CubicRamp:
+    """Per-joint values that move to a new target along the lab's cubic (zero slope at both
+    ends) over `ticks` calls of `advance()`, from the value x0 they had when the target was set:
+
+        x(i) = x0 + (x1 - x0) (3 s^2 - 2 s^3),  s = i / N,  i = 1 .. N;  x(N) = x1 exactly.
+
+    The largest step |x(i) - x(i-1)| is at most 1.5 |x1 - x0| / N (the cubic's slope at
+    s = 1/2). N = 0: the target is taken at the next `advance()` (a step). A new target during a
+    ramp starts a new ramp from the present value.
+    """
+
+    def __init__(self, initial: np.ndarray, ticks: int) -> None:
+        if not (isinstance(ticks, int | np.integer) and ticks >= 0):
+            raise ValueError(f"the ramp length must be a whole number of ticks >= 0, got {ticks}")
+        self.ticks = int(ticks)
+        self._value = np.array(initial, dtype=float)
+        self._start = self._value.copy()
+        self._target = self._value.copy()
+        self._step = max(self.ticks, 1)  # at rest: nothing to do
+
+    @property
+    def value(self) -> np.ndarray:
+        return self._value
+
+    @property
+    def target(self) -> np.ndarray:
+        return self._target.copy()
+
+    def set_target(self, target: np.ndarray) -> None:
+        self._start[:] = self._value
+        self._target[:] = target
+        self._step = 0
+
+    def advance(self) -> np.ndarray:
+        """One tick along the ramp; returns the value for this tick."""
+        if self._step >= max(self.ticks, 1):
+            return self._value
+        self._step += 1
+        if self._step >= self.ticks:
+            self._value[:] = self._target
+        else:
+            s = self._step / self.ticks
+            self._value[:] = self._start + (self._target - self._start) * (3 * s * s - 2 * s**3)
+        return self._value
 
 
 def nominal_servo_coefficients(
@@ -113,40 +187,52 @@ def discrete_q_response(frequency_hz: np.ndarray, cutoff_hz: float, dt_s: float)
 class DisturbanceObserver:
     """The discrete DOB of (9)-(11) for n joints (see the module docstring for the equations).
 
-    Per tick: `update(theta_m(k), u_sent(k-1))` returns d_hat(k) = Kdist q(k). The returned
+    Per tick: `update(theta_m(k), u_sent(k-1))` returns d_hat(k) = Kdist(k) q(k). The returned
     array is owned by the observer and overwritten by the next update.
+
+    cutoff_hz or filter_pole (exactly one): the Q filter; kdist: the initial gain (taken at
+    once); kdist_ramp_ticks: how many updates a later `set_kdist` takes (0: a step).
     """
 
     def __init__(
         self,
         servo_gain_per_s: np.ndarray,
-        cutoff_hz: float,
+        cutoff_hz: float | None,
         dt_s: float,
         kdist: np.ndarray | float,
         method: Discretisation = "zoh",
+        *,
+        filter_pole: float | None = None,
+        kdist_ramp_ticks: int = 0,
     ) -> None:
         servo_gain = np.array(servo_gain_per_s, dtype=float, ndmin=1)
         if servo_gain.ndim != 1 or np.any(~np.isfinite(servo_gain)) or np.any(servo_gain <= 0):
             raise ValueError(
                 f"servo_gain_per_s must be a 1-D array of values > 0, got {servo_gain}"
             )
+        if not (np.isfinite(dt_s) and dt_s > 0):
+            raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
         self.n_joints = servo_gain.size
-        self.cutoff_hz = float(cutoff_hz)
         self.dt_s = float(dt_s)
         self.method = method
-        self._alpha = q_filter_pole(cutoff_hz, dt_s)
+        self._alpha = resolve_q_filter_pole(cutoff_hz, filter_pole, dt_s)
+        self.cutoff_hz = q_filter_cutoff_hz(self._alpha, dt_s)
         self._a, self._b = nominal_servo_coefficients(servo_gain, dt_s, method)
-        self._kdist = np.zeros(self.n_joints)
+        self._kdist = CubicRamp(self._checked_kdist(kdist), kdist_ramp_ticks)
         self._previous_motor_angle = np.zeros(self.n_joints)
         self._filtered = np.zeros(self.n_joints)
         self._raw = np.zeros(self.n_joints)
         self._output = np.zeros(self.n_joints)
         self._resynced = False
-        self.set_kdist(kdist)
 
     @property
     def kdist(self) -> np.ndarray:
-        return self._kdist.copy()
+        """The gain of the last update (during a ramp: the ramp's present value)."""
+        return self._kdist.value.copy()
+
+    @property
+    def kdist_target(self) -> np.ndarray:
+        return self._kdist.target
 
     @property
     def filter_pole(self) -> float:
@@ -158,7 +244,11 @@ class DisturbanceObserver:
         return self._filtered.copy()
 
     def set_kdist(self, kdist: np.ndarray | float) -> None:
-        """New Kdist per joint (scalar = all joints), effective from the next update."""
+        """New Kdist per joint (scalar = all joints): ramps from the next update on (see
+        `CubicRamp`), reaching it exactly at the kdist_ramp_ticks-th update."""
+        self._kdist.set_target(self._checked_kdist(kdist))
+
+    def _checked_kdist(self, kdist: np.ndarray | float) -> np.ndarray:
         values = np.array(kdist, dtype=float, ndmin=1)
         if values.size == 1:
             values = np.full(self.n_joints, values[0])
@@ -168,7 +258,7 @@ class DisturbanceObserver:
             )
         if not np.all(np.isfinite(values)):
             raise ValueError(f"kdist must be finite, got {values}")
-        self._kdist[:] = values
+        return values
 
     def reset(self, motor_angle_rad: np.ndarray) -> None:
         """Start with no disturbance, the servo at rest at `motor_angle_rad`."""
@@ -185,10 +275,11 @@ class DisturbanceObserver:
 
     def update(self, motor_angle_rad: np.ndarray, sent_command_rad: np.ndarray) -> np.ndarray:
         """d_hat(k) from theta_m(k) and the goal sent at the previous tick, u_sent(k-1)."""
+        kdist = self._kdist.advance()
         if self._resynced:
             self._resynced = False
             self._previous_motor_angle[:] = motor_angle_rad
-            np.multiply(self._kdist, self._filtered, out=self._output)
+            np.multiply(kdist, self._filtered, out=self._output)
             return self._output
         raw = self._raw
         # u_hat(k-1) = (theta_m(k) - a theta_m(k-1)) / b, then raw = u_hat - u_sent.
@@ -199,5 +290,5 @@ class DisturbanceObserver:
         self._filtered *= self._alpha
         self._filtered += (1.0 - self._alpha) * raw
         self._previous_motor_angle[:] = motor_angle_rad
-        np.multiply(self._kdist, self._filtered, out=self._output)
+        np.multiply(kdist, self._filtered, out=self._output)
         return self._output

@@ -1,40 +1,44 @@
 """State of (20) from quantised encoders at the loop rate: x = [theta_m; theta_j; dtheta_j].
 
-Sensors: the actuator's motor encoder, 501,923 pulses/rev (H54-200-S500-R e-Manual; quantum
-q_m = 1.2518e-5 rad), and the link encoder, 983,040 counts/rev (RLS RLC2IC resolution code 13 on
-an MR075 ring: 120 poles x 8192; q_j = 6.392e-6 rad). Angles are used as read.
+Sensors: the actuator's motor encoder (quantum q_m) and the link encoder (quantum q_j). Their
+resolutions are device facts: the caller passes them (the loop takes them from its drivers);
+the analysis below is in terms of q. For scale, the testbed: q_m = 2 pi / 501,923 = 1.2518e-5 rad
+(H54-200-S500-R), q_j = 2 pi / 983,040 = 6.392e-6 rad (RLS RLC2IC on an MR075 ring). Angles are
+used as read.
 
-Link velocity: the backward difference v(k) = (theta_j(k) - theta_j(k-1)) / dt, optionally
-low-passed, v_f(k) = beta v_f(k-1) + (1 - beta) v(k), beta = exp(-2 pi fc dt).
+What is fed back, said once. The derivative-form LQR (24) gets dx(k) = x(k) - x(k-1) with the
+link velocity from the backward difference v(k) = (theta_j(k) - theta_j(k-1)) / dt, optionally
+low-passed, v_f(k) = beta v_f(k-1) + (1 - beta) v(k), beta = exp(-2 pi fc dt): so the
+link-velocity increment d dtheta_j(k) = v(k) - v(k-1) is a second difference of the link angle.
+The lab's code fed ZERO for that increment (its d dtheta_j block was never filled): that is
+`link_velocity_increment="zero"` (`LinkVelocityIncrement`); the default is "backward-difference".
 Why the plain difference by default: it has only half a tick of lag, which the discrete LQR
-tolerates (tests/test_controller_closed_loop.py includes it in the sampled loop), and at this
+tolerates (tests/test_controller_closed_loop.py includes it in the sampled loop), and at a fine
 link resolution its noise is small. The noise, with eps the quantisation error of each sample
 (|eps| <= q/2 when rounding, 0 <= eps < q when truncating; uniform, variance q^2/12):
 
     difference:  |noise| < q / dt                       rms q / (dt sqrt 6)
     low-passed:  |noise| < (1 - beta) q / dt            rms (1 - beta) q / (dt sqrt(6 (1 + beta)))
 
-At 200 Hz: link 1.28e-3 rad/s worst case, 5.2e-4 rad/s rms. In the LQR the velocity enters as
-the increment d dtheta_j, whose sum over ticks telescopes, so the goal carries the velocity
-gain times this noise (not its integral): at most 0.33 rad/(rad/s) x 1.28e-3 rad/s = 4e-4 rad
-for a 2 kg m^2 link, much less for lighter ones (the gain falls with the inertia).
+At 200 Hz and q_j = 6.39e-6 rad: 1.28e-3 rad/s worst case, 5.2e-4 rad/s rms. In the LQR the
+velocity enters as the increment d dtheta_j, whose sum over ticks telescopes, so the goal carries
+the velocity gain times this noise (not its integral): at most 0.33 rad/(rad/s) x 1.28e-3 rad/s =
+4e-4 rad for a 2 kg m^2 link, much less for lighter ones (the gain falls with the inertia).
 
 Deflection theta_j - theta_m (sign as `drivers.joint_bus.JointSample`): error < (q_m + q_j) / 2
-= 9.5e-6 rad, i.e. 0.019 N m of spring torque at K = 2000 N m/rad.
-
-The derivative-form LQR uses dx(k) = x(k) - x(k-1) (`increment`).
+(`deflection_error_bound_rad`; 9.5e-6 rad on the testbed, 0.019 N m of spring torque at
+K = 2000 N m/rad).
 """
 
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 
-MOTOR_PULSES_PER_REV = 501_923  # H54-200-S500-R, e-Manual "Present Position"
-LINK_COUNTS_PER_REV = 983_040  # RLS RLC2IC (code 13: 8192 counts/pole) on MR075 (120 poles)
-MOTOR_ENCODER_RESOLUTION_RAD = 2.0 * math.pi / MOTOR_PULSES_PER_REV
-LINK_ENCODER_RESOLUTION_RAD = 2.0 * math.pi / LINK_COUNTS_PER_REV
+LinkVelocityIncrement = Literal["backward-difference", "zero"]
+LINK_VELOCITY_INCREMENTS: tuple[str, ...] = get_args(LinkVelocityIncrement)
 
 
 def _velocity_filter_pole(cutoff_hz: float | None, dt_s: float) -> float:
@@ -52,6 +56,11 @@ def velocity_noise_bound_rad_s(
     return (1.0 - _velocity_filter_pole(cutoff_hz, dt_s)) * resolution_rad / dt_s
 
 
+def deflection_error_bound_rad(motor_resolution_rad: float, link_resolution_rad: float) -> float:
+    """Worst-case quantisation error of theta_j - theta_m, both encoders rounding: (q_m + q_j)/2."""
+    return 0.5 * (motor_resolution_rad + link_resolution_rad)
+
+
 def velocity_noise_rms_rad_s(
     resolution_rad: float, dt_s: float, cutoff_hz: float | None = None
 ) -> float:
@@ -63,16 +72,28 @@ def velocity_noise_rms_rad_s(
 class FlexibleJointStateEstimator:
     """x(k) = [theta_m; theta_j; v_j] and dx(k) = x(k) - x(k-1) for n joints, stacked by quantity.
 
+    link_velocity_increment: "backward-difference" (dx carries v(k) - v(k-1)) or "zero" (the
+    lab's: the increment's velocity block is zero; the state keeps the estimated velocity).
     Arrays returned are owned by the estimator and overwritten by the next update.
     """
 
     def __init__(
-        self, n_joints: int, dt_s: float, link_velocity_cutoff_hz: float | None = None
+        self,
+        n_joints: int,
+        dt_s: float,
+        link_velocity_cutoff_hz: float | None = None,
+        link_velocity_increment: LinkVelocityIncrement = "backward-difference",
     ) -> None:
         if not (np.isfinite(dt_s) and dt_s > 0):
             raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
+        if link_velocity_increment not in LINK_VELOCITY_INCREMENTS:
+            raise ValueError(
+                f"link_velocity_increment must be one of {LINK_VELOCITY_INCREMENTS}, "
+                f"got {link_velocity_increment!r}"
+            )
         self.n_joints = n_joints
         self.dt_s = float(dt_s)
+        self._zero_velocity_increment = link_velocity_increment == "zero"
         self._beta = _velocity_filter_pole(link_velocity_cutoff_hz, dt_s)
         self._state = np.zeros(3 * n_joints)
         self._previous_state = np.zeros(3 * n_joints)
@@ -126,4 +147,6 @@ class FlexibleJointStateEstimator:
         self._state[:n] = motor_angle_rad
         self._state[n : 2 * n] = link_angle_rad
         np.subtract(self._state, self._previous_state, out=self._increment)
+        if self._zero_velocity_increment:
+            self._increment[2 * n :] = 0.0
         return self._state

@@ -8,21 +8,58 @@ e = y - theta_d (theta_d slowly varying, d theta_d/dt ~ 0) gives the augmented s
 the cost (22) J = int e' Qe e + (dx/dt)' Qx (dx/dt) + (duc/dt)' R (duc/dt) dt, the Riccati
 equation (23) A'S + SA - S B R^-1 B'S + Q = 0 and the feedback (24) duc/dt = -R^-1 B'S [e; dx/dt].
 
-Discrete design, what the loop runs (as the lab's code does, reference note sec. 1). With the
-plant sampled at the loop period, x(k+1) = Ad x(k) + Bd u(k), the increments
-dx(k) = x(k) - x(k-1) and duc(k) = uc(k) - uc(k-1) obey dx(k+1) = Ad dx(k) + Bd duc(k), and
-e(k+1) = e(k) + C dx(k+1) for a constant reference, so
+Discrete design, what the loop runs (as the lab's code does). With the plant sampled at the loop
+period, x(k+1) = Ad x(k) + Bd u(k), the increments dx(k) = x(k) - x(k-1) and
+duc(k) = uc(k) - uc(k-1) obey dx(k+1) = Ad dx(k) + Bd duc(k), and e(k+1) = e(k) + C dx(k+1) for a
+constant reference, so
 
     [e; dx](k+1) = [[I, C Ad], [0, Ad]] [e; dx](k) + [[C Bd], [Bd]] duc(k),
 
-with the same weights per tick; scipy.linalg.solve_discrete_are gives P and
-duc(k) = -(R + B'PB)^-1 B'PA [e(k); dx(k)]. uc is the running sum of duc: the error weight
-makes it an integral controller (gain per tick on e, i.e. an integral gain of error_gain / dt).
+and scipy.linalg.solve_discrete_are gives P and duc(k) = -(R + B'PB)^-1 B'PA [e(k); dx(k)]. uc is
+the running sum of duc: the error weight makes it an integral controller (gain per tick on e, an
+integral gain of error_gain / dt). Three designs (`LqrDesign`):
 
-Why not the continuous gain at 200 Hz: its fastest closed-loop pole lies at -4,000 rad/s
-(Qx = I) or -12,700 rad/s (Q = 10 I) for I_link = 0.25 kg m^2, far beyond pi/dt = 628 rad/s;
-implemented as duc(k) = dt * duc/dt it is unstable (tests/test_controller_closed_loop.py shows
-the sampled poles). The continuous design stays for analysis.
+    "euler"            Ad = I + A dt, Bd = B dt (the lab's code), Q and R applied per tick
+    "zoh"              exact sampling of (20) for a goal held over the tick, Q and R per tick
+    "continuous-cost"  the paper's cost (22) itself, integrated exactly over each tick
+
+The per-tick weights are NOT the paper's cost (22). Summing (22) over ticks with dx ~ (dx/dt) dt
+and duc ~ (duc/dt) dt gives J ~ (1/dt) sum_k (Qe dt^2 e'e + Qx dx'dx + R duc'duc): the per-tick
+problem equivalent to (22) weights the error by Qe dt^2 against the increments. "euler" and "zoh"
+weight it by Qe, 1/dt^2 = 40,000 times more at 200 Hz. So they are much stiffer integrators than
+(22) asks for. For one joint with I_link = 0.376 kg m^2 (K 2000, D 100, Kp 10, Qe 10, Qx 1, R 1,
+200 Hz; tests/controller/test_lqr_designs.py):
+
+    design           Ke/tick  Ke/dt [1/s]  Kx on [d th_m, d th_j, d dth_j]  rho     tau_dom
+    euler (the lab)  0.2170   43.4         [0.998,  0.671, -0.0114]         0.9149  56 ms
+    zoh              0.3866   77.3         [0.950,  2.559,  0.0402]         0.9148  56 ms
+    continuous-cost  0.00258  0.516        [0.945, -1.444,  0.0635]         0.9924  0.657 s
+    (22) continuous  -        3.162 = sqrt(Qe/R); dominant poles -1.522 +- 0.911j: 0.657 s
+
+(rho: spectral radius of the designed closed loop; tau_dom = -dt / ln(rho).) The continuous
+design's error gain is sqrt(Qe/R) exactly: the (1,1) block of (23) reads Ke' R Ke = Qe, because
+the error is a pure integrator of C dx/dt.
+
+"continuous-cost": (21) sampled with duc/dt held over each tick (Van Loan's method, C. F. Van
+Loan, "Computing integrals involving the matrix exponential", IEEE TAC 23(3), 1978): with
+F = [[A_bar, B_bar], [0, 0]] and W = blockdiag(Q, R),
+
+    expm([[-F', W], [0, F]] dt) = [[., G12], [0, G22]],  G22 = expm(F dt) = [[Phi, Gamma], [0, I]],
+    int_0^dt z' W z dt = z(0)' (G22' G12) z(0) = xi' Qd xi + 2 xi' N w + w' Rd w,  z = [xi; w],
+
+and the DARE with the cross term N gives w(k) = -K xi(k) on xi = [e; dx/dt], run as
+duc(k) = dt w(k) with dx/dt ~ dx(k) / dt, i.e. error_gain = K_e dt, state_increment_gain = K_x.
+As dt -> 0 it tends to the continuous design (Ke/dt -> sqrt(Qe/R)); at 200 Hz its dominant pole is
+already the continuous one (-1.522 +- 0.911j to 1e-4), while its error gain is 6x below sqrt(10):
+the continuous optimum leans on a -2,671 rad/s pole that a 5 ms sample cannot realise.
+What it means for the DOB: in the accumulated reading the static yield is Kdist d / Ke (see
+`controller.composition`), 84x larger than with the lab's Ke: the per-tick weights are what make
+the lab's DOB hold a load at all.
+
+Why not the continuous gain itself at 200 Hz: its fastest closed-loop pole lies at -2,671 rad/s
+(Qx = I) for I_link = 0.376 kg m^2, far beyond pi/dt = 628 rad/s; implemented as
+duc(k) = dt * duc/dt it is unstable (spectral radius 2.99 with Qx = I, 13.0 with Q = 10 I on all
+states, tests/test_controller_closed_loop.py). The continuous design stays for analysis.
 
 Weights. The paper (Sec. IV-A): "Q and R ... are the diagonal matrix of 10 and 1". We read it
 as the lab's code does: Qe = 10 I on the error, Qx = 1 I on the state increments, R = 1 I
@@ -32,8 +69,9 @@ as the lab's code does: Qe = 10 I on the error, Qx = 1 I on the state increments
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 import scipy.linalg
@@ -47,7 +85,17 @@ from controller.model import (
 )
 
 Coupling = Literal["full", "diagonal"]
-COUPLINGS: tuple[str, ...] = ("full", "diagonal")
+COUPLINGS: tuple[str, ...] = get_args(Coupling)
+LqrDesign = Literal["euler", "zoh", "continuous-cost"]
+LQR_DESIGNS: tuple[str, ...] = get_args(LqrDesign)
+
+
+def servo_discretisation(design: LqrDesign) -> Discretisation:
+    """The sampling of the nominal servo (4) that goes with an LQR design (the DOB's Pn^-1):
+    the lab's Euler with "euler", the exact ZOH otherwise."""
+    if design not in LQR_DESIGNS:
+        raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {design!r}")
+    return "euler" if design == "euler" else "zoh"
 
 
 @dataclass(frozen=True)
@@ -100,7 +148,9 @@ class LqrSolution:
     closed_loop_eigenvalues: np.ndarray
 
 
-def _check_lqr_arguments(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
+def _check_lqr_arguments(
+    a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray | None = None
+) -> None:
     """Shapes and definiteness, as python-control's lqr/dlqr check them."""
     if a.ndim != 2 or a.shape[0] != a.shape[1]:
         raise ValueError(f"A must be square, got shape {a.shape}")
@@ -122,6 +172,12 @@ def _check_lqr_arguments(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndar
         raise ValueError("Q must be positive semi-definite")
     if np.min(np.linalg.eigvalsh(r)) <= 0:
         raise ValueError("R must be positive definite")
+    if s is not None:
+        if s.shape != (n_states, n_inputs):
+            raise ValueError(f"the cross weight must be {n_states} x {n_inputs}, got {s.shape}")
+        joint = np.block([[q, s], [s.T, r]])
+        if np.min(np.linalg.eigvalsh(joint)) < -1e-12 * max(1.0, float(np.max(np.abs(joint)))):
+            raise ValueError("[[Q, N], [N', R]] must be positive semi-definite")
 
 
 def continuous_lqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> LqrSolution:
@@ -138,18 +194,69 @@ def continuous_lqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -
     return LqrSolution(gain, riccati, np.linalg.eigvals(a - b @ gain))
 
 
-def discrete_lqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> LqrSolution:
-    """P from A'PA - P - A'PB (R + B'PB)^-1 B'PA + Q = 0, K = (R + B'PB)^-1 B'PA, eig(A - B K)."""
-    _check_lqr_arguments(a, b, q, r)
+def discrete_lqr(
+    a: np.ndarray,
+    b: np.ndarray,
+    q: np.ndarray,
+    r: np.ndarray,
+    cross_weight: np.ndarray | None = None,
+) -> LqrSolution:
+    """Minimise sum x'Qx + 2 x'N u + u'Ru: P from
+    A'PA - P - (A'PB + N)(R + B'PB)^-1 (B'PA + N') + Q = 0, K = (R + B'PB)^-1 (B'PA + N'),
+    eig(A - B K). N = cross_weight (None: zero)."""
+    _check_lqr_arguments(a, b, q, r, cross_weight)
     try:
-        riccati = scipy.linalg.solve_discrete_are(a, b, q, r)
+        riccati = scipy.linalg.solve_discrete_are(a, b, q, r, s=cross_weight)
     except (np.linalg.LinAlgError, ValueError) as error:
         raise ValueError(
             f"no stabilising discrete Riccati solution ((A, B) not stabilisable or "
             f"(A, Q) has unobservable modes on the unit circle): {error}"
         ) from error
-    gain = np.linalg.solve(r + b.T @ riccati @ b, b.T @ riccati @ a)
+    coupling = b.T @ riccati @ a
+    if cross_weight is not None:
+        coupling = coupling + cross_weight.T
+    gain = np.linalg.solve(r + b.T @ riccati @ b, coupling)
     return LqrSolution(gain, riccati, np.linalg.eigvals(a - b @ gain))
+
+
+@dataclass(frozen=True)
+class SampledQuadraticCost:
+    """A continuous system and cost sampled with the input held over each period dt:
+    x(k+1) = phi x(k) + gamma w(k), and, exactly,
+    int_{k dt}^{(k+1) dt} x'Qx + w'Rw dt = x(k)' Qd x(k) + 2 x(k)' N w(k) + w(k)' Rd w(k)."""
+
+    phi: np.ndarray
+    gamma: np.ndarray
+    state_weight: np.ndarray
+    cross_weight: np.ndarray
+    input_weight: np.ndarray
+
+
+def sample_quadratic_cost(
+    a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray, dt_s: float
+) -> SampledQuadraticCost:
+    """Van Loan's method (see the module docstring): one matrix exponential gives the sampled
+    system and the exact integral of the cost over a period."""
+    _check_lqr_arguments(a, b, q, r)
+    if not (np.isfinite(dt_s) and dt_s > 0):
+        raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
+    n_states, n_inputs = b.shape
+    size = n_states + n_inputs
+    f = np.zeros((size, size))
+    f[:n_states, :n_states] = a
+    f[:n_states, n_states:] = b
+    w = scipy.linalg.block_diag(q, r)
+    van_loan = scipy.linalg.expm(np.block([[-f.T, w], [np.zeros((size, size)), f]]) * dt_s)
+    transition = van_loan[size:, size:]  # expm(F dt)
+    weight = transition.T @ van_loan[:size, size:]
+    weight = 0.5 * (weight + weight.T)
+    return SampledQuadraticCost(
+        phi=transition[:n_states, :n_states],
+        gamma=transition[:n_states, n_states:],
+        state_weight=weight[:n_states, :n_states],
+        cross_weight=weight[:n_states, n_states:],
+        input_weight=weight[n_states:, n_states:],
+    )
 
 
 def augmented_continuous(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -204,6 +311,18 @@ class TrackingGain:
         """[error_gain, state_increment_gain]: n x 4n on [e; dx]."""
         return np.hstack([self.error_gain, self.state_increment_gain])
 
+    @property
+    def integral_gain_per_s(self) -> np.ndarray:
+        """error_gain / dt: the integral gain of uc on the tracking error [1/s]."""
+        return self.error_gain / self.dt_s
+
+    @property
+    def dominant_time_constant_s(self) -> float:
+        """-dt / ln(spectral radius): the slowest mode of the designed loop [s] (NaN if unknown)."""
+        if not 0.0 < self.spectral_radius < 1.0:
+            return float("nan")
+        return -self.dt_s / math.log(self.spectral_radius)
+
 
 def design_continuous_tracking_lqr(
     params: FlexibleJointParams, sm: np.ndarray, weights: LqrWeights
@@ -234,13 +353,27 @@ def _design_discrete_coupled(
     sm: np.ndarray,
     dt_s: float,
     weights: LqrWeights,
-    method: Discretisation,
+    design: LqrDesign,
 ) -> tuple[np.ndarray, float]:
-    system = discretise(flexible_joint_state_space(params, sm), dt_s, method)
-    a_aug, b_aug = augmented_discrete(system.a, system.b, system.c)
-    q, r = weights.matrices(params.n_joints)
-    solution = discrete_lqr(a_aug, b_aug, q, r)
-    return solution.gain, float(np.max(np.abs(solution.closed_loop_eigenvalues)))
+    """Gain per tick on [e; dx] and the designed loop's spectral radius."""
+    n = params.n_joints
+    q, r = weights.matrices(n)
+    continuous = flexible_joint_state_space(params, sm)
+    if design == "continuous-cost":
+        a_bar, b_bar = augmented_continuous(continuous.a, continuous.b, continuous.c)
+        cost = sample_quadratic_cost(a_bar, b_bar, q, r, dt_s)
+        solution = discrete_lqr(
+            cost.phi, cost.gamma, cost.state_weight, cost.input_weight, cost.cross_weight
+        )
+        # w = duc/dt on [e; dx/dt]  ->  duc(k) = dt w = -(K_e dt) e - K_x dx(k)
+        gain = solution.gain.copy()
+        gain[:, :n] *= dt_s
+    else:
+        system = discretise(continuous, dt_s, servo_discretisation(design))
+        a_aug, b_aug = augmented_discrete(system.a, system.b, system.c)
+        solution = discrete_lqr(a_aug, b_aug, q, r)
+        gain = solution.gain
+    return gain, float(np.max(np.abs(solution.closed_loop_eigenvalues)))
 
 
 def design_discrete_tracking_lqr(
@@ -248,18 +381,22 @@ def design_discrete_tracking_lqr(
     sm: np.ndarray,
     dt_s: float,
     weights: LqrWeights | None = None,
-    method: Discretisation = "zoh",
+    method: LqrDesign = "zoh",
     coupling: Coupling = "full",
 ) -> TrackingGain:
     """The gain the loop runs: the discrete derivative-form LQR at period dt_s.
 
-    method: "zoh" (exact sampling of (20) for a goal held over the tick; default) or "euler"
-    (the lab's forward Euler; see `controller.model.discretise` for where it breaks down).
+    method: "zoh" (exact sampling of (20) for a goal held over the tick, Q and R per tick;
+    default), "euler" (the lab's forward Euler, Q and R per tick; see
+    `controller.model.discretise` for where it breaks down) or "continuous-cost" (the paper's
+    cost (22) integrated over each tick; see the module docstring for what each weighs).
     coupling: "full" solves one 4n-state problem with the whole Sm; "diagonal" keeps only the
     diagonal of Sm (as the lab's code does), solves n independent 4-state problems and stacks
     them (each gain block is then diagonal). With a diagonal Sm both give the same gain.
     """
     weights = weights if weights is not None else LqrWeights()
+    if method not in LQR_DESIGNS:
+        raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {method!r}")
     n = params.n_joints
     sm = validate_sm(sm, n)
     if coupling == "full":

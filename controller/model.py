@@ -26,7 +26,7 @@ Units: angles rad, velocities rad/s, K N m/rad, D N m s/rad, Kp 1/s, Sm 1/(kg m^
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 import scipy.linalg
@@ -38,7 +38,7 @@ PAPER_DAMPING_NMS_PER_RAD = 100.0
 PAPER_SERVO_GAIN_PER_S = 10.0
 
 Discretisation = Literal["zoh", "euler"]
-DISCRETISATIONS: tuple[str, ...] = ("zoh", "euler")
+DISCRETISATIONS: tuple[str, ...] = get_args(Discretisation)
 
 
 def per_joint_array(value: object, what: str, n_joints: int | None = None) -> np.ndarray:

@@ -25,7 +25,12 @@ from typing import Any
 import can
 import numpy as np
 
-from drivers.canbus import ForceSensorConfig, LinkEncoderConfig, LinkEncoderReader
+from drivers.canbus import (
+    ForceSensorConfig,
+    ForceTorqueSensorConfig,
+    LinkEncoderConfig,
+    LinkEncoderReader,
+)
 from drivers.dynamixel import DynamixelChain, DynamixelChainConfig, actuator_fault
 from drivers.joint_bus import (
     ActuatorFault,
@@ -36,6 +41,7 @@ from drivers.joint_bus import (
     JointBus,
     JointDevices,
     JointSample,
+    add_wrench,
 )
 
 
@@ -47,6 +53,7 @@ class CanChannelConfig:
     bus_kwargs: dict[str, Any]
     encoders: tuple[LinkEncoderConfig, ...]
     force_sensor: ForceSensorConfig | None = None
+    force_torque_sensors: tuple[ForceTorqueSensorConfig, ...] = ()
 
     @property
     def description(self) -> str:
@@ -161,6 +168,7 @@ class DynamixelCanBus(JointBus):
                     can_bus,
                     channel.encoders,
                     force_sensor=channel.force_sensor,
+                    force_torque_sensors=channel.force_torque_sensors,
                     clock=self.clock,
                     bus_description=channel.description,
                 )
@@ -237,6 +245,8 @@ class DynamixelCanBus(JointBus):
             sample.notes.extend(link.events)
             if link.force is not None:
                 sample.extra["contact_force_n"] = link.force.force_n
+            for wrench in link.wrenches:
+                add_wrench(sample.extra, wrench.label, wrench.force_n, wrench.torque_nm)
         return sample
 
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:

@@ -121,6 +121,23 @@ class JointSample:
         return [f for f in self.bus_errors if f.joint == joint and f.role is role]
 
 
+WRENCH_AXES = ("fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm")
+
+
+def wrench_keys(label: str) -> tuple[str, ...]:
+    """The `JointSample.extra` keys of a six-axis force/torque sensor named `label`:
+    `<label>_fx_n` ... `<label>_mz_nm` (its frame, SI)."""
+    return tuple(f"{label}_{axis}" for axis in WRENCH_AXES)
+
+
+def add_wrench(
+    extra: dict[str, float], label: str, force_n: np.ndarray, torque_nm: np.ndarray
+) -> None:
+    """Put a wrench reading into a sample's `extra` under `wrench_keys(label)`."""
+    for key, value in zip(wrench_keys(label), (*force_n, *torque_nm), strict=True):
+        extra[key] = float(value)
+
+
 @dataclass(frozen=True)
 class JointDevices:
     """How one joint's devices are named in messages (e.g. "Dynamixel ID 1 on /dev/ttyUSB0")."""

@@ -45,6 +45,8 @@ class SafetyCause(enum.StrEnum):
     DEFLECTION = "deflection"
     CURRENT = "current"
     COMMAND_INVALID = "command_invalid"
+    GOAL_SATURATED = "goal_saturated"
+    GAIN_OUT_OF_RANGE = "gain_out_of_range"
     OVERRUN = "overrun"
 
     @property

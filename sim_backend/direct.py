@@ -1,18 +1,21 @@
 """The emulated robot without its buses, for loops that run in this process (`DirectTestbed`).
 
-The same devices, firmware, plant, scenario and faults as `hil emulate` (sim_backend/server.py
-builds them with the same `EmulatedRobot.build`), but read and commanded in SI instead of over
+The same devices, firmware, plant, scenario and faults as `hil emulate` (both build them with
+`sim_backend.hardware.build_hardware`, the testbed or the humanoid), but read and commanded in
+SI instead of over
 Protocol 2.0 and CANopen - what python-can's `virtual` interface is to a CAN adapter. It exists
 so that the loop, the supervisor and the start gate can be tested in milliseconds; the emulated
 buses on pseudo-terminals stay the end-to-end path.
 
 What a reading holds is what the drivers would report: the motor angle, velocity and current
 from the control table (Present Position/Velocity/Current, undoing the actuator's mounting as
-the driver's offset and direction do), the link angle quantised to the encoder's counts exactly
-as the CiA 406 node counts, the contact force quantised to the force sensor's 1 mN. Faults act
-on the reading: a silent, dropped or corrupted reply makes the actuator's values invalid that
-tick (a silent actuator also ignores goals and torque commands); a dead encoder gives nothing, a
-stale one its last count, a noisy one Gaussian count noise.
+the driver's offset and direction do), the link angle and the contact force from the very CAN
+sensor nodes `hil emulate` serves (`CanopenSlave.sample`: their noise, faults, rounding and random
+draws), converted as the CiA 406 / 404 objects define them. Faults act on the reading: a silent,
+dropped or corrupted reply makes the actuator's values invalid that tick (a silent actuator also
+ignores goals and torque commands); a dead encoder gives nothing, a stale one its last count, a
+noisy one Gaussian count noise. A lock-step run in-process writes the same log, byte for byte,
+as the same run through the emulated buses.
 """
 
 from __future__ import annotations
@@ -22,13 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.robots import build_hardware
 from sim_backend.scenario import ActiveFaults, FaultSchedule
-from sim_backend.server import EmulatedRobot, EmulatorSpec
 from sim_backend.servo import (
     AMPERE_PER_CURRENT_UNIT,
     RAD_PER_PULSE,
     RAD_S_PER_VELOCITY_UNIT,
 )
+from sim_backend.spec import EmulatorSpec
 
 FORCE_SENSOR_NEWTONS_PER_COUNT = 1e-3  # the emulated CiA 404 sensor's PV is in mN
 
@@ -46,6 +50,7 @@ class DirectReading:
     link_angle_rad: np.ndarray
     link_valid: np.ndarray
     contact_force_n: float
+    wrenches: list[tuple[np.ndarray, np.ndarray] | None]  # per force/torque sensor, SI
 
 
 class DirectTestbed:
@@ -54,7 +59,7 @@ class DirectTestbed:
 
     def __init__(self, spec: EmulatorSpec) -> None:
         self.spec = spec
-        self.robot = EmulatedRobot.build(spec)
+        self.robot = build_hardware(spec)
         n = len(spec.joints)
         self.n_joints = n
         self.schedule = FaultSchedule(spec.scenario.faults, n)
@@ -63,16 +68,16 @@ class DirectTestbed:
         self._faults = self.schedule.at(None)
         self._drops_pending: list[int] = []
         self._corrupt_pending: list[int] = []
-        self._stale_counts: list[int | None] = [None] * n
-        self._last_counts: list[int] = [0] * n
-        self._encoder_rng = [np.random.default_rng([spec.seed, 7919, index]) for index in range(n)]
+        self.encoders = self.robot.encoders
+        self.force_sensor = self.robot.force_sensor
+        self.ft_sensors = self.robot.ft_sensors
         self._counts_per_rad = np.array(
             [j.encoder_counts_per_rev / (2.0 * math.pi) for j in spec.joints]
         )
 
     # --- time --------------------------------------------------------------------------------
     def sync(self) -> None:
-        testbed = self.robot.testbed
+        testbed = self.robot
         if self.sync_count == 0:
             testbed.start_scenario()
         else:
@@ -82,6 +87,14 @@ class DirectTestbed:
         self._faults = self.schedule.at(testbed.scenario_time_s)
         self._drops_pending += self._faults.drop_next
         self._corrupt_pending += self._faults.corrupt_next
+        for node, mode, noise in zip(
+            self.encoders,
+            self._faults.encoder_mode,
+            self._faults.encoder_noise_counts_rms,
+            strict=True,
+        ):
+            node.fault.mode = mode
+            node.fault.noise_counts_rms = noise
 
     @property
     def faults(self) -> ActiveFaults:
@@ -95,11 +108,12 @@ class DirectTestbed:
             nan.copy(), nan.copy(), nan.copy(), np.zeros(n, dtype=np.uint8),
             np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), nan.copy(),
             np.zeros(n, dtype=bool), self._force_n(),
+            [node.sample_wrench(self.time_s) for node in self.ft_sensors],
         )  # fmt: skip
         for i in range(n):
             if self._actuator_answers(i):
                 self._read_actuator(i, reading)
-            counts = self._encoder_counts(i)
+            counts = self.encoders[i].sample(self.time_s)
             if counts is not None:
                 joint = self.spec.joints[i]
                 angle = counts / self._counts_per_rad[i] - joint.encoder_offset_rad
@@ -121,7 +135,7 @@ class DirectTestbed:
 
     def _read_actuator(self, i: int, reading: DirectReading) -> None:
         device = self.robot.devices[i]
-        mount = self.robot.joints[i].motor_mounting
+        mount = self.robot.mountings[i]
         pulses = device.item("Present Position")
         reading.motor_angle_rad[i] = mount.to_physical(pulses * RAD_PER_PULSE)
         velocity = device.item("Present Velocity") * RAD_S_PER_VELOCITY_UNIT
@@ -132,34 +146,11 @@ class DirectTestbed:
         reading.torque_enabled[i] = device.torque_enabled
         reading.motor_valid[i] = True
 
-    def _encoder_counts(self, i: int) -> int | None:
-        """The count the CiA 406 node would send at this SYNC (None: it sends nothing)."""
-        mode = self._faults.encoder_mode[i]
-        if mode == "dead":
-            self._stale_counts[i] = None
-            return None
-        if mode == "stale":
-            if self._stale_counts[i] is None:
-                self._stale_counts[i] = self._last_counts[i]
-            return self._stale_counts[i]
-        self._stale_counts[i] = None
-        joint = self.spec.joints[i]
-        # the node's source and formula (server._link_angle_source, LinkEncoderNode)
-        angle = self.robot.joints[i].plant.link_angle_rad
-        source = angle + joint.encoder_direction * joint.encoder_offset_rad
-        exact = joint.encoder_direction * source * self._counts_per_rad[i]
-        noise = self._faults.encoder_noise_counts_rms[i]
-        if mode == "noisy" and noise > 0:
-            exact += float(self._encoder_rng[i].normal(0.0, noise))
-        counts = math.floor(exact + 0.5)
-        self._last_counts[i] = counts
-        return counts
-
     def _force_n(self) -> float:
-        if not self.spec.force_sensor_node_id:
+        if self.force_sensor is None:
             return math.nan
-        counts = math.floor(self.robot.contact_force_n() / FORCE_SENSOR_NEWTONS_PER_COUNT + 0.5)
-        return counts * FORCE_SENSOR_NEWTONS_PER_COUNT
+        counts = self.force_sensor.sample(self.time_s)
+        return math.nan if counts is None else counts * FORCE_SENSOR_NEWTONS_PER_COUNT
 
     # --- commands ----------------------------------------------------------------------------
     def hears(self, i: int) -> bool:
@@ -172,7 +163,7 @@ class DirectTestbed:
         if not self.hears(i):
             return False
         device = self.robot.devices[i]
-        pulses = round(self.robot.joints[i].motor_mounting.to_device(goal_rad) / RAD_PER_PULSE)
+        pulses = round(self.robot.mountings[i].to_device(goal_rad) / RAD_PER_PULSE)
         return device.write_item("Goal Position", pulses) == 0
 
     def set_torque(self, i: int, on: bool) -> bool:

@@ -42,8 +42,18 @@ class FaultEvent:
             raise ValueError(
                 f"unknown emulator fault {self.kind!r}; choose one of {list(EMULATOR_FAULTS)}"
             )
-        if self.start_s < 0 or (self.duration_s is not None and self.duration_s <= 0):
-            raise ValueError(f"fault {self.kind}: start must be >= 0 and duration > 0")
+        duration_ok = self.duration_s is None or (
+            math.isfinite(self.duration_s) and self.duration_s > 0
+        )
+        if not (math.isfinite(self.start_s) and self.start_s >= 0 and duration_ok):
+            raise ValueError(
+                f"fault {self.kind}: start must be a finite time >= 0 s and the duration a "
+                f"finite time > 0 s, got start {self.start_s} s, duration {self.duration_s} s"
+            )
+        if not (math.isfinite(self.noise_counts_rms) and self.noise_counts_rms >= 0):
+            raise ValueError(f"fault {self.kind}: noise must be finite and >= 0 counts rms")
+        if self.joint < 0:
+            raise ValueError(f"fault {self.kind}: joint index must be >= 0, got {self.joint}")
 
     @property
     def end_s(self) -> float:
@@ -68,23 +78,29 @@ class Scenario:
     pushes: tuple[PushEvent, ...] = ()
     faults: tuple[FaultEvent, ...] = ()
     obstacle_contact_angle_rad: float | None = None  # None: no block in reach
+    pelvis_pushes: tuple[PelvisPushEvent, ...] = ()  # the humanoid's
 
     def to_dict(self) -> dict:
         return {
             "pushes": [vars(p) for p in self.pushes],
             "faults": [vars(f) for f in self.faults],
             "obstacle_contact_angle_rad": self.obstacle_contact_angle_rad,
+            "pelvis_pushes": [vars(p) for p in self.pelvis_pushes],
         }
 
     @classmethod
     def from_dict(cls, data: dict) -> Scenario:
-        unknown = set(data) - {"pushes", "faults", "obstacle_contact_angle_rad"}
+        unknown = set(data) - {"pushes", "faults", "obstacle_contact_angle_rad", "pelvis_pushes"}
         if unknown:
             raise ValueError(f"unknown scenario keys {sorted(unknown)}")
         return cls(
             pushes=tuple(PushEvent(**p) for p in data.get("pushes", [])),
             faults=tuple(FaultEvent(**f) for f in data.get("faults", [])),
             obstacle_contact_angle_rad=data.get("obstacle_contact_angle_rad"),
+            pelvis_pushes=tuple(
+                PelvisPushEvent(p["start_s"], p["duration_s"], tuple(p["force_n"]))
+                for p in data.get("pelvis_pushes", [])
+            ),
         )
 
 
@@ -169,3 +185,12 @@ def _activate(event: FaultEvent, active: ActiveFaults) -> None:
     elif event.kind == "noisy_encoder":
         active.encoder_mode[joint] = "noisy"
         active.encoder_noise_counts_rms[joint] = event.noise_counts_rms
+
+
+@dataclass(frozen=True)
+class PelvisPushEvent:
+    """A force [N] (world frame) on the humanoid's pelvis from start_s for duration_s."""
+
+    start_s: float
+    duration_s: float
+    force_n: tuple[float, float, float]

@@ -22,118 +22,45 @@ The first line on stdout is one JSON object telling a host how to reach the buse
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import select
 import signal
 import sys
 import time
-from dataclasses import dataclass, field
 from typing import Any, TextIO
 
 import can
-import numpy as np
 
-from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, SlcanPty
+from sim_backend.canbus import CanSegment, SlcanPty
 from sim_backend.dynamixel import (
-    BAUD_RATE_BPS,
     DynamixelChain,
     DynamixelLine,
-    H54Device,
 )
-from sim_backend.plant import ObstacleParams, TestbedPlantParams
-from sim_backend.scenario import FaultSchedule, Scenario
-from sim_backend.servo import H54ServoParams
-from sim_backend.testbed import EmulatedJoint, Mounting, VirtualTestbed
+from sim_backend.hardware import sensor_nodes
+from sim_backend.robots import build_hardware
+from sim_backend.scenario import FaultSchedule
+from sim_backend.spec import (  # re-exported: the emulator's spec is built by hil
+    CLOCKS,
+    ROBOTS,
+    EmulatedJointSpec,
+    EmulatorSpec,
+    HumanoidSpec,
+    SensorNoise,
+)
+
+__all__ = [
+    "CLOCKS",
+    "ROBOTS",
+    "EmulatedJointSpec",
+    "Emulator",
+    "EmulatorSpec",
+    "HumanoidSpec",
+    "SensorNoise",
+    "serve",
+]
 
 SYNC_COB_ID = 0x080
-CLOCKS = ("lockstep", "realtime")
-
-
-@dataclass(frozen=True)
-class EmulatedJointSpec:
-    """One emulated joint: its bus addresses and how its sensors are mounted."""
-
-    dxl_id: int
-    encoder_node_id: int
-    encoder_counts_per_rev: int = 983_040
-    encoder_direction: int = 1
-    encoder_offset_rad: float = 0.0
-    motor_direction: int = 1
-    motor_offset_rad: float = 0.0
-
-
-@dataclass(frozen=True)
-class EmulatorSpec:
-    """Everything the emulator process needs; `hil` builds it from the configuration file."""
-
-    joints: tuple[EmulatedJointSpec, ...]
-    baudrate: int = 3_000_000
-    can_bitrate: int = 1_000_000
-    force_sensor_node_id: int = 0
-    period_s: float = 0.005
-    clock: str = "lockstep"
-    seed: int = 0
-    plant: TestbedPlantParams = field(default_factory=TestbedPlantParams)
-    servo: H54ServoParams = field(default_factory=H54ServoParams)
-    scenario: Scenario = field(default_factory=Scenario)
-    reboot_time_s: float = 0.5
-    heartbeat_ms: int = 100
-
-    def __post_init__(self) -> None:
-        if not self.joints:
-            raise ValueError("the emulator needs at least one joint")
-        if self.clock not in CLOCKS:
-            raise ValueError(f"clock must be one of {CLOCKS}, got {self.clock!r}")
-        if self.baudrate not in BAUD_RATE_BPS.values():
-            raise ValueError(
-                f"an H54 cannot run at {self.baudrate} bps; its Baud Rate item offers "
-                f"{sorted(BAUD_RATE_BPS.values())}"
-            )
-        if not self.period_s > 0:
-            raise ValueError("period_s must be > 0")
-
-
-def _baud_index(baudrate: int) -> int:
-    return next(index for index, bps in BAUD_RATE_BPS.items() if bps == baudrate)
-
-
-@dataclass
-class EmulatedRobot:
-    """The emulated devices and physics of a spec, before any bus is attached to them."""
-
-    devices: list[H54Device]
-    joints: list[EmulatedJoint]
-    testbed: VirtualTestbed
-    plant_params: TestbedPlantParams
-
-    @classmethod
-    def build(cls, spec: EmulatorSpec) -> EmulatedRobot:
-        plant_params = _with_obstacle(spec.plant, spec.scenario.obstacle_contact_angle_rad)
-        devices: list[H54Device] = []
-        joints: list[EmulatedJoint] = []
-        for index, joint_spec in enumerate(spec.joints):
-            device = H54Device(
-                joint_spec.dxl_id,
-                baud_index=_baud_index(spec.baudrate),
-                reboot_time_s=spec.reboot_time_s,
-            )
-            joint = EmulatedJoint(
-                device,
-                plant_params,
-                spec.servo,
-                motor_mounting=Mounting(joint_spec.motor_direction, joint_spec.motor_offset_rad),
-                rng=_rng(spec.seed, 1000 + index),
-            )
-            joint.pushes = [p for p in spec.scenario.pushes if p.joint == index]
-            device.add_reboot_listener(joint.on_reboot)
-            devices.append(device)
-            joints.append(joint)
-        return cls(devices, joints, VirtualTestbed(joints), plant_params)
-
-    def contact_force_n(self) -> float:
-        return sum(j.plant.contact_force_n() for j in self.joints)
 
 
 class Emulator:
@@ -142,37 +69,11 @@ class Emulator:
     def __init__(self, spec: EmulatorSpec) -> None:
         self.spec = spec
         self.realtime = spec.clock == "realtime"
-        robot = EmulatedRobot.build(spec)
-        self.robot = robot
-        self.devices = robot.devices
-        self.joints = robot.joints
-        nodes: list[Any] = []
-        for index, joint_spec in enumerate(spec.joints):
-            nodes.append(
-                LinkEncoderNode(
-                    joint_spec.encoder_node_id,
-                    _link_angle_source(
-                        robot.joints[index],
-                        joint_spec.encoder_direction,
-                        joint_spec.encoder_offset_rad,
-                    ),
-                    counts_per_rev=joint_spec.encoder_counts_per_rev,
-                    direction=joint_spec.encoder_direction,
-                    heartbeat_ms=spec.heartbeat_ms,
-                    seed=spec.seed * 7919 + index,
-                )
-            )
-        self.encoders: list[LinkEncoderNode] = list(nodes)
-        self.force_sensor: ForceSensorNode | None = None
-        if spec.force_sensor_node_id:
-            self.force_sensor = ForceSensorNode(
-                spec.force_sensor_node_id,
-                robot.contact_force_n,
-                heartbeat_ms=spec.heartbeat_ms,
-                seed=spec.seed * 7919 + 999,
-            )
-            nodes.append(self.force_sensor)
-        self.testbed = robot.testbed
+        self.hardware = build_hardware(spec)
+        self.devices = self.hardware.devices
+        self.encoders = self.hardware.encoders
+        nodes = sensor_nodes(self.hardware)
+        self.testbed = self.hardware
         self.chain = DynamixelChain(self.devices, enforce_baud=True)
         self.line = DynamixelLine(self.chain, realtime=self.realtime)
         self.segment = CanSegment(nodes, bitrate=spec.can_bitrate)
@@ -296,28 +197,6 @@ class Emulator:
     def close(self) -> None:
         self.line.close()
         self.slcan.close()
-
-
-def _link_angle_source(joint: EmulatedJoint, direction: int, offset_rad: float):  # noqa: ANN202
-    """The encoder's own angle (before the node's direction): undone by the driver's offset."""
-    plant = joint.plant
-    # The node multiplies by its direction; the driver computes direction * (reading - offset).
-    return lambda: plant.link_angle_rad + direction * offset_rad
-
-
-def _rng(seed: int, stream: int) -> np.random.Generator:
-    return np.random.default_rng([seed, stream])
-
-
-def _with_obstacle(
-    params: TestbedPlantParams, contact_angle_rad: float | None
-) -> TestbedPlantParams:
-    """The block is part of an experiment's world: present only where the scenario puts it."""
-    if contact_angle_rad is None:
-        return dataclasses.replace(params, obstacle=None)
-    approach = 1 if contact_angle_rad > params.initial_link_angle_rad else -1
-    obstacle = ObstacleParams(contact_angle_rad=contact_angle_rad, approach=approach)
-    return dataclasses.replace(params, obstacle=obstacle)
 
 
 def serve(spec: EmulatorSpec, out: TextIO = sys.stdout, extra: dict | None = None) -> None:

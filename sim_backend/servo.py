@@ -72,7 +72,18 @@ class H54ServoParams:
     velocity_integral_time_s: float = 15.0  # weak integral action; register 586 = 14
     torque_constant_nm_per_a: float = 44.7 / 9.3  # continuous torque / current (e-Manual spec)
     dynamic_brake_damping_nms_per_rad: float = 40.0  # shorted windings: Kt^2 / R, R ~ 0.6 ohm
-    current_noise_a: float = 0.0  # rms noise on Present Current (0: off)
+    # Measurement noise of the Present* items (zero-mean Gaussian before rounding, seeded from the
+    # emulator's seed; 0: off). ROBOTIS publish no figure for either.
+    # Present Current: the coil current, which "can change very quickly due to the nature of the
+    # controller" (ROBOTIS, DynamixelSDK issue #433); users see X-series readings at standstill
+    # scatter over ~10 LSB of 2.69 mA (DynamixelSDK issues #264, #442). 20 mA rms is 1.2 LSB
+    # of the H54's 16.1 mA.
+    current_noise_a: float = 0.02
+    # Present Velocity: the firmware differentiates its 501,923-pulse encoder; differenced over
+    # the assumed 1 ms velocity-loop period, one pulse's quantisation gives an rms of
+    # q / (T sqrt 6) = 1.2518e-5 rad / (1e-3 s x 2.449) = 5.1e-3 rad/s (24.5 units of
+    # 0.00199234 rpm).
+    velocity_noise_rad_s: float = 5.1e-3
     overload_current_fraction: float = 0.9
     overload_trip_time_s: float = 1.5
     temperature_c: float = 35.0
@@ -92,6 +103,10 @@ class H54ServoParams:
                 raise ValueError(f"servo parameter {name} must be > 0, got {getattr(self, name)}")
         if not 0 < self.overload_current_fraction <= 1:
             raise ValueError("overload_current_fraction must be in (0, 1]")
+        for name in ("current_noise_a", "velocity_noise_rad_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"servo parameter {name} must be a finite rms >= 0, got {value}")
 
 
 @dataclass
@@ -193,8 +208,12 @@ class H54Firmware:
         motor_velocity_rad_s: float,
         dt_s: float,
         current_noise_a: float = 0.0,
+        velocity_noise_rad_s: float = 0.0,
     ) -> None:
-        """Write the Present* items after a physics step and run the overload protection."""
+        """Write the Present* items after a physics step and run the overload protection.
+
+        current_noise_a, velocity_noise_rad_s: this step's measurement noise (the current the
+        firmware measures is also what its overload protection sees)."""
         p = self.params
         current_a = motor_torque_nm / p.torque_constant_nm_per_a + current_noise_a
         self.last_current_a = current_a
@@ -203,8 +222,9 @@ class H54Firmware:
             "Present Position",
             _round_to_int32(motor_angle_rad / RAD_PER_PULSE - table.item("Homing Offset")),
         )
+        measured_velocity = motor_velocity_rad_s + velocity_noise_rad_s
         table.set_item(
-            "Present Velocity", _round_to_int32(motor_velocity_rad_s / RAD_S_PER_VELOCITY_UNIT)
+            "Present Velocity", _round_to_int32(measured_velocity / RAD_S_PER_VELOCITY_UNIT)
         )
         table.set_item("Present Current", _clamp_int16(round(current_a / AMPERE_PER_CURRENT_UNIT)))
         table.set_item("Present Temperature", round(p.temperature_c))

@@ -98,15 +98,25 @@ class EmulatedJoint:
         self._report()
 
     def _report(self) -> None:
-        noise_rms = self.firmware.params.current_noise_a
-        noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
+        """Present* items with the servo's measurement noise (`H54ServoParams`), drawn from this
+        joint's seeded generator: current first, then velocity, every physics step."""
+        params = self.firmware.params
+        current_noise = (
+            float(self._rng.normal(0.0, params.current_noise_a)) if params.current_noise_a else 0.0
+        )
+        velocity_noise = (
+            float(self._rng.normal(0.0, params.velocity_noise_rad_s))
+            if params.velocity_noise_rad_s
+            else 0.0
+        )
         mount = self.motor_mounting
         self.firmware.report(
             mount.direction * self.plant.motor_torque_nm,
             mount.to_device(self.plant.motor_angle_rad),
             mount.direction * self.plant.motor_velocity_rad_s,
             self._dt,
-            current_noise_a=noise,
+            current_noise_a=current_noise,
+            velocity_noise_rad_s=velocity_noise,
         )
 
 
@@ -123,24 +133,30 @@ class VirtualTestbed:
             raise ValueError("a virtual testbed needs at least one joint")
         self.joints = list(joints)
         self._dt = joints[0].plant.params.physics_timestep_s
-        self.time_s = 0.0
-        self.scenario_origin_s: float | None = None
+        # Time is counted in whole physics steps: a float summed step by step drifts, and a
+        # fault or push due at exactly t would then start a step late (or early).
+        self.steps = 0
+        self._origin_step: int | None = None
         self._carry_s = 0.0
 
     @property
     def physics_timestep_s(self) -> float:
         return self._dt
 
+    @property
+    def time_s(self) -> float:
+        return self.steps * self._dt
+
     def start_scenario(self) -> None:
-        if self.scenario_origin_s is None:
-            self.scenario_origin_s = self.time_s
+        if self._origin_step is None:
+            self._origin_step = self.steps
 
     @property
     def scenario_time_s(self) -> float | None:
         """Time since the first SYNC on the plant's clock, None before it."""
-        if self.scenario_origin_s is None:
+        if self._origin_step is None:
             return None
-        return self.time_s - self.scenario_origin_s
+        return (self.steps - self._origin_step) * self._dt
 
     def advance(self, duration_s: float) -> int:
         """Advance by whole physics steps covering duration_s (remainders carry over)."""
@@ -151,5 +167,5 @@ class VirtualTestbed:
             scenario_time = self.scenario_time_s
             for joint in self.joints:
                 joint.step(scenario_time)
-            self.time_s += self._dt
+            self.steps += 1
         return steps

@@ -63,6 +63,37 @@ class ForceSensorConfig:
             raise ValueError(f"offset_n must be finite, got {self.offset_n}")
 
 
+@dataclass(frozen=True)
+class ForceTorqueSensorConfig:
+    """A six-axis force/torque sensor on CAN (CiA 404, six analogue inputs Fx Fy Fz Mx My Mz).
+
+    The forces come in one TPDO (`force_tpdo`, channels 1-3) and the moments in another
+    (`torque_tpdo`, channels 4-6), both answering the same SYNC.
+    label: a name for messages and logs (e.g. "left foot").
+    force_offset_n / torque_offset_nm: the readings at zero load (a tare), subtracted after
+        the unit conversion. Other fields as LinkEncoderConfig.
+    """
+
+    node_id: int
+    label: str = "force/torque sensor"
+    force_offset_n: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    torque_offset_nm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    stale_after_s: float = 0.02
+    heartbeat_ms: int = 100
+    force_tpdo: int = 1
+    torque_tpdo: int = 2
+
+    def __post_init__(self) -> None:
+        _check_common(self.node_id, +1, self.stale_after_s, self.heartbeat_ms, self.force_tpdo)
+        _check_common(self.node_id, +1, self.stale_after_s, self.heartbeat_ms, self.torque_tpdo)
+        if self.force_tpdo == self.torque_tpdo:
+            raise ValueError("force_tpdo and torque_tpdo must be two different TPDOs")
+        for name in ("force_offset_n", "torque_offset_nm"):
+            values = getattr(self, name)
+            if len(values) != 3 or not all(math.isfinite(v) for v in values):
+                raise ValueError(f"{name} needs three finite values, got {values}")
+
+
 def _check_common(
     node_id: int, direction: int, stale_after_s: float, heartbeat_ms: int, tpdo: int
 ) -> None:

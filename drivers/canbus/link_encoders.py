@@ -1,4 +1,5 @@
-"""Link encoders (CiA 406) and an optional force sensor (CiA 404) on CAN, read by SYNC -> TPDO.
+"""Link encoders (CiA 406), an optional force sensor (CiA 404) and optional six-axis force/torque
+sensors (CiA 404, six channels in two TPDOs) on CAN, read by SYNC -> TPDO.
 
 Each tick the loop calls `send_sync()` (the SYNC frame 0x080 goes on the bus at once; every
 node latches its value now) and then `collect(timeout_s)`, which reads the answering TPDOs
@@ -17,6 +18,10 @@ queue):
      the force sensor's unit (0x6131:01) must be newton, 0x6132:01 gives its decimal digits;
   3. check the TPDO mapping (first object 0x60040020 position value, or 0x91300120 AI PV),
      enable the TPDO if its COB-ID is marked invalid, set transmission type 1 (every SYNC);
+     a force/torque sensor: 0x6131:00 >= 6 channels, newton (0x21) on channels 1-3 and newton
+     metre (0x23, the joule's code: CiA 303-2 has none of its own) on 4-6, 0x6132 their
+     resolutions; its force TPDO maps 0x7130:01-03, its torque TPDO 0x7130:04-06 (INTEGER16);
+     its answer to a SYNC counts when both TPDOs arrived (`WrenchReading`, N and N m);
   4. set the producer heartbeat time 0x1017, NMT start, and wait for a heartbeat that says
      Operational (0x05).
 Every failure names the node, the bus, and what was expected.
@@ -48,14 +53,18 @@ import canopen
 import numpy as np
 from canopen.nmt import NMT_STATES
 
-from drivers.canbus.config import ForceSensorConfig, LinkEncoderConfig
+from drivers.canbus.config import ForceSensorConfig, ForceTorqueSensorConfig, LinkEncoderConfig
 from drivers.canbus.object_dictionary import (
     TPDO_COMMUNICATION_BASE,
     TPDO_MAPPING_BASE,
     sensor_object_dictionary,
 )
-from drivers.canbus.readings import ForceReading, LinkReading
-from drivers.canbus.units import force_n_from_counts, link_angle_rad_from_counts
+from drivers.canbus.readings import ForceReading, LinkReading, WrenchReading
+from drivers.canbus.units import (
+    force_n_from_counts,
+    link_angle_rad_from_counts,
+    wrench_from_counts,
+)
 from drivers.joint_bus import BusError
 
 CIA406_ENCODER_PROFILE = 0x0196
@@ -64,6 +73,16 @@ CIA406_SINGLE_TURN_ABSOLUTE = 0x0001  # 0x1000 bits 16-31: the count wraps once 
 POSITION_VALUE_MAPPING = 0x6004_0020  # 0x6004 position value, 32 bits
 AI_PROCESS_VALUE_MAPPING = 0x9130_0120  # 0x9130:01 AI input PV, 32 bits
 CIA303_NEWTON = 0x21  # unit code in byte 2 of 0x6131 (CiA 303-2)
+# A force/torque sensor's moments: CiA 303-2 has no code of its own for the newton metre; the
+# joule (0x23) has its SI dimension and is what the emulated sensor reports (see its EDS).
+CIA303_NEWTON_METRE = 0x23
+# Force/torque sensor: its two TPDOs map the 16-bit AI PVs 0x7130:1-3 (forces), :4-6 (moments)
+FORCE_TORQUE_MAPPINGS = (
+    (0x7130_0110, 0x7130_0210, 0x7130_0310),
+    (0x7130_0410, 0x7130_0510, 0x7130_0610),
+)
+_FORCE_TORQUE_CHANNELS = 6
+_INT16x3 = struct.Struct("<hhh")
 
 _NMT_RESET_COMMUNICATION = 0x82
 _NMT_START = 0x01
@@ -91,15 +110,21 @@ class _Device:
     """One node as the reader knows it (configuration plus what open() learned)."""
 
     label: str
-    config: LinkEncoderConfig | ForceSensorConfig
+    config: LinkEncoderConfig | ForceSensorConfig | ForceTorqueSensorConfig
     node: canopen.RemoteNode
     tpdo_cob_id: int = 0
+    tpdo_cob_ids: tuple[int, ...] = ()  # every TPDO the node answers a SYNC with
     single_turn: bool = False
     newtons_per_count: float = 1.0
+    si_per_count: np.ndarray | None = None  # force/torque sensor: per channel, N or N m
 
     @property
     def is_encoder(self) -> bool:
         return isinstance(self.config, LinkEncoderConfig)
+
+    @property
+    def is_force_torque(self) -> bool:
+        return isinstance(self.config, ForceTorqueSensorConfig)
 
 
 class LinkEncoderReader:
@@ -118,17 +143,21 @@ class LinkEncoderReader:
         encoders: Sequence[LinkEncoderConfig],
         *,
         force_sensor: ForceSensorConfig | None = None,
+        force_torque_sensors: Sequence[ForceTorqueSensorConfig] = (),
         clock: Callable[[], float] = time.monotonic,
         bus_description: str | None = None,
         sdo_timeout_s: float = 0.3,
         boot_timeout_s: float = 1.0,
         heartbeat_timeout_factor: float = 3.0,
     ) -> None:
-        configs: list[LinkEncoderConfig | ForceSensorConfig] = list(encoders)
+        configs: list[LinkEncoderConfig | ForceSensorConfig | ForceTorqueSensorConfig] = list(
+            encoders
+        )
         if not configs:
             raise ValueError("LinkEncoderReader needs at least one LinkEncoderConfig")
         if force_sensor is not None:
             configs.append(force_sensor)
+        configs.extend(force_torque_sensors)
         node_ids = [config.node_id for config in configs]
         if len(set(node_ids)) != len(node_ids):
             raise ValueError(f"CAN sensor node IDs must be distinct, got {node_ids}")
@@ -146,6 +175,7 @@ class LinkEncoderReader:
         self._object_dictionary = sensor_object_dictionary()
         self.encoder_configs: tuple[LinkEncoderConfig, ...] = tuple(encoders)
         self.force_sensor_config = force_sensor
+        self.force_torque_configs: tuple[ForceTorqueSensorConfig, ...] = tuple(force_torque_sensors)
         self._devices: list[_Device] = []
         for index, config in enumerate(configs):
             node = canopen.RemoteNode(config.node_id, self._object_dictionary)
@@ -155,6 +185,8 @@ class LinkEncoderReader:
             node.emcy.add_callback(functools.partial(self._on_emcy, index))
             if isinstance(config, LinkEncoderConfig):
                 label = f"link encoder node {config.node_id} (joint {index})"
+            elif isinstance(config, ForceTorqueSensorConfig):
+                label = f"force/torque sensor node {config.node_id} ({config.label})"
             else:
                 label = f"force sensor node {config.node_id}"
             self._devices.append(_Device(label=label, config=config, node=node))
@@ -162,6 +194,13 @@ class LinkEncoderReader:
         n_devices = len(self._devices)
         self._n_encoders = len(self.encoder_configs)
         self._tpdo_device: dict[int, int] = {}
+        self._tpdo_part: dict[int, int] = {}  # COB-ID -> which of its device's TPDOs (0, 1)
+        # Force/torque sensors: devices _ft_first.. ; both TPDOs of a SYNC make an answer.
+        n_ft = len(self.force_torque_configs)
+        self._ft_first = n_devices - n_ft
+        self._ft_parts = np.zeros(n_devices, dtype=np.int64)  # bit per TPDO received
+        self._ft_answer_raw = np.zeros((n_ft, _FORCE_TORQUE_CHANNELS), dtype=np.int64)
+        self._ft_raw = np.zeros((n_ft, _FORCE_TORQUE_CHANNELS), dtype=np.int64)
         # Per-device state (index = position in self._devices).
         self._answered = np.zeros(n_devices, dtype=bool)
         self._answer_raw = np.zeros(n_devices, dtype=np.int64)
@@ -257,6 +296,7 @@ class LinkEncoderReader:
             raise CanDeviceError(f"send_sync() on {self.bus_description} before open()")
         self._drain()
         self._answered[:] = False
+        self._ft_parts[:] = 0
         self._n_answered = 0
         self._sync_time_s = self._clock()
         self._sync_outstanding = True
@@ -308,6 +348,9 @@ class LinkEncoderReader:
             self._network.notify(msg.arbitration_id, msg.data, msg.timestamp)
             return
         device = self._devices[index]
+        if device.is_force_torque:
+            self._dispatch_wrench(index, self._tpdo_part[msg.arbitration_id], msg)
+            return
         if len(msg.data) < 4:
             self._events.append(
                 f"{device.label}: TPDO with {len(msg.data)} bytes ignored (expected 4)"
@@ -320,6 +363,24 @@ class LinkEncoderReader:
             self._answered[index] = True
             self._n_answered += 1
         self._answer_raw[index] = _INT32.unpack_from(msg.data)[0]
+
+    def _dispatch_wrench(self, index: int, part: int, msg: can.Message) -> None:
+        """One of a force/torque sensor's two TPDOs: three INTEGER16 channels."""
+        device = self._devices[index]
+        if len(msg.data) < _INT16x3.size:
+            self._events.append(
+                f"{device.label}: TPDO with {len(msg.data)} bytes ignored (expected 6)"
+            )
+            return
+        if not self._sync_outstanding:
+            self._events.append(f"{device.label}: late TPDO discarded (answered an earlier SYNC)")
+            return
+        sensor = index - self._ft_first
+        self._ft_answer_raw[sensor, 3 * part : 3 * part + 3] = _INT16x3.unpack_from(msg.data)
+        self._ft_parts[index] |= 1 << part
+        if self._ft_parts[index] == 0b11 and not self._answered[index]:
+            self._answered[index] = True
+            self._n_answered += 1
 
     def _on_heartbeat(self, index: int, state: int) -> None:
         """canopen heartbeat callback (Notifier thread during open, else collect's thread)."""
@@ -378,7 +439,7 @@ class LinkEncoderReader:
         )
         angles = np.where(answered[:n], angles, np.nan)
         force = None
-        if len(self._devices) > n:
+        if self.force_sensor_config is not None:
             device = self._devices[n]
             config = device.config
             assert isinstance(config, ForceSensorConfig)
@@ -402,6 +463,10 @@ class LinkEncoderReader:
                 heartbeat_age_s=float(heartbeat_age_s[n]),
                 heartbeat_lost=bool(heartbeat_lost[n]),
             )
+        wrenches = tuple(
+            self._wrench_reading(index, age_s, stale, states, heartbeat_age_s, heartbeat_lost)
+            for index in range(self._ft_first, len(self._devices))
+        )
         events = tuple(self._events)
         self._events.clear()
         return LinkReading(
@@ -418,6 +483,44 @@ class LinkEncoderReader:
             heartbeat_lost=heartbeat_lost[:n],
             force=force,
             events=events,
+            wrenches=wrenches,
+        )
+
+    def _wrench_reading(
+        self,
+        index: int,
+        age_s: np.ndarray,
+        stale: np.ndarray,
+        states: tuple[str, ...],
+        heartbeat_age_s: np.ndarray,
+        heartbeat_lost: np.ndarray,
+    ) -> WrenchReading:
+        device = self._devices[index]
+        config = device.config
+        assert isinstance(config, ForceTorqueSensorConfig) and device.si_per_count is not None
+        sensor = index - self._ft_first
+        valid = bool(self._answered[index])
+        if valid:
+            self._ft_raw[sensor] = self._ft_answer_raw[sensor]
+            force, torque = wrench_from_counts(
+                self._ft_raw[sensor],
+                device.si_per_count,
+                np.asarray(config.force_offset_n),
+                np.asarray(config.torque_offset_nm),
+            )
+        else:
+            force = torque = np.full(3, np.nan)
+        return WrenchReading(
+            label=config.label,
+            force_n=force,
+            torque_nm=torque,
+            valid=valid,
+            age_s=float(age_s[index]),
+            stale=bool(stale[index]),
+            raw=self._ft_raw[sensor].copy(),
+            nmt_state=states[index],
+            heartbeat_age_s=float(heartbeat_age_s[index]),
+            heartbeat_lost=bool(heartbeat_lost[index]),
         )
 
     # --- configuration (canopen, Notifier running) -----------------------------------------
@@ -447,14 +550,26 @@ class LinkEncoderReader:
     def _configure(self, index: int) -> None:
         device = self._devices[index]
         self._tpdo_device = {cob: i for cob, i in self._tpdo_device.items() if i != index}
+        self._tpdo_part = {cob: p for cob, p in self._tpdo_part.items() if cob in self._tpdo_device}
         self._reset_communication(index)
-        if device.is_encoder:
-            self._check_encoder(index)
-            expected_mapping = POSITION_VALUE_MAPPING
+        config = device.config
+        if isinstance(config, ForceTorqueSensorConfig):
+            self._check_force_torque_sensor(device)
+            device.tpdo_cob_ids = (
+                self._configure_tpdo(index, config.force_tpdo, FORCE_TORQUE_MAPPINGS[0]),
+                self._configure_tpdo(index, config.torque_tpdo, FORCE_TORQUE_MAPPINGS[1]),
+            )
+            if device.tpdo_cob_ids[0] == device.tpdo_cob_ids[1]:
+                raise self._error(device, "its two TPDOs use the same COB-ID")
         else:
-            self._check_force_sensor(device)
-            expected_mapping = AI_PROCESS_VALUE_MAPPING
-        self._configure_tpdo(index, expected_mapping)
+            if device.is_encoder:
+                self._check_encoder(index)
+                expected_mapping = POSITION_VALUE_MAPPING
+            else:
+                self._check_force_sensor(device)
+                expected_mapping = AI_PROCESS_VALUE_MAPPING
+            device.tpdo_cob_id = self._configure_tpdo(index, config.tpdo, (expected_mapping,))
+            device.tpdo_cob_ids = (device.tpdo_cob_id,)
         self._sdo_write(device, 0x1017, 0, device.config.heartbeat_ms, "heartbeat time 0x1017")
         self._start(index)
         self._reset_tracking(index)
@@ -499,6 +614,26 @@ class LinkEncoderReader:
             )
 
     def _check_force_sensor(self, device: _Device) -> None:
+        self._require_measuring_device(device)
+        device.newtons_per_count = self._si_per_count(device, 1, CIA303_NEWTON, "newton")
+
+    def _check_force_torque_sensor(self, device: _Device) -> None:
+        """CiA 404 with six channels: newton on 1-3, newton metre on 4-6; their resolutions."""
+        self._require_measuring_device(device)
+        channels = self._sdo_read(device, 0x6131, 0, "number of AI channels 0x6131:00")
+        if channels < _FORCE_TORQUE_CHANNELS:
+            raise self._error(
+                device, f"has {channels} analogue inputs (0x6131:00); a force/torque sensor has 6"
+            )
+        device.si_per_count = np.array(
+            [self._si_per_count(device, channel, CIA303_NEWTON, "newton") for channel in (1, 2, 3)]
+            + [
+                self._si_per_count(device, channel, CIA303_NEWTON_METRE, "newton metre")
+                for channel in (4, 5, 6)
+            ]
+        )
+
+    def _require_measuring_device(self, device: _Device) -> None:
         device_type, profile, _ = self._read_profile(device)
         if profile != CIA404_MEASURING_DEVICE_PROFILE:
             raise self._error(
@@ -506,53 +641,59 @@ class LinkEncoderReader:
                 f"device type 0x{device_type:08X} is profile CiA {profile}, not a CiA 404 "
                 "measuring device (expected low 16 bits 0x0194)",
             )
-        unit = self._sdo_read(device, 0x6131, 1, "AI physical unit 0x6131:01")
-        if (unit >> 16) & 0xFF != CIA303_NEWTON:
+
+    def _si_per_count(self, device: _Device, channel: int, unit_code: int, unit: str) -> float:
+        """One analogue input's resolution from 0x6131 (unit, prefix) and 0x6132 (digits)."""
+        code = self._sdo_read(device, 0x6131, channel, f"AI physical unit 0x6131:{channel:02X}")
+        if (code >> 16) & 0xFF != unit_code:
             raise self._error(
                 device,
-                f"physical unit 0x{unit:08X} (0x6131:01) is not newton (CiA 303-2 unit code "
-                "0x21 in byte 2)",
+                f"physical unit 0x{code:08X} (0x6131:{channel:02X}) is not {unit} (CiA 303-2 "
+                f"unit code 0x{unit_code:02X} in byte 2)",
             )
-        prefix_exponent = int.from_bytes(bytes([unit >> 24]), "little", signed=True)
-        decimal_digits = self._sdo_read(device, 0x6132, 1, "AI decimal digits 0x6132:01")
-        device.newtons_per_count = 10.0 ** (prefix_exponent - decimal_digits)
+        prefix_exponent = int.from_bytes(bytes([code >> 24]), "little", signed=True)
+        digits = self._sdo_read(device, 0x6132, channel, f"AI decimal digits 0x6132:{channel:02X}")
+        return 10.0 ** (prefix_exponent - digits)
 
-    def _configure_tpdo(self, index: int, expected_mapping: int) -> None:
-        """Check the mapping, enable the TPDO, transmission type 1 (CiA 301 0x18xx/0x1Axx)."""
+    def _configure_tpdo(self, index: int, number: int, expected: tuple[int, ...]) -> int:
+        """Check TPDO `number`'s mapping starts with `expected`, enable the TPDO if its COB-ID
+        is marked invalid, set transmission type 1 (CiA 301 0x18xx/0x1Axx); its COB-ID."""
         device = self._devices[index]
-        number = device.config.tpdo
         communication = TPDO_COMMUNICATION_BASE + number - 1
         mapping = TPDO_MAPPING_BASE + number - 1
         n_mapped = self._sdo_read(device, mapping, 0, f"TPDO{number} mapping 0x{mapping:04X}:00")
-        first_mapped = 0
-        if n_mapped:
-            first_mapped = self._sdo_read(device, mapping, 1, f"TPDO{number} mapping entry 1")
-        if first_mapped != expected_mapping:
-            raise self._error(
-                device,
-                f"TPDO{number} maps 0x{first_mapped:08X} first (0x{mapping:04X}:01), expected "
-                f"0x{expected_mapping:08X}; configure the node's mapping or set `tpdo` in the "
-                "configuration to the TPDO that carries it",
-            )
+        for entry, expected_mapping in enumerate(expected, start=1):
+            mapped = 0
+            if n_mapped >= entry:
+                mapped = self._sdo_read(
+                    device, mapping, entry, f"TPDO{number} mapping entry {entry}"
+                )
+            if mapped != expected_mapping:
+                raise self._error(
+                    device,
+                    f"TPDO{number} maps 0x{mapped:08X} as entry {entry} "
+                    f"(0x{mapping:04X}:{entry:02X}), expected 0x{expected_mapping:08X}; "
+                    "configure the node's mapping or set the "
+                    "TPDO number in the configuration to the TPDO that carries it",
+                )
         cob_id = self._sdo_read(device, communication, 1, f"TPDO{number} COB-ID")
         if cob_id & _PDO_COB_ID_INVALID:
             cob_id &= ~_PDO_COB_ID_INVALID
             self._sdo_write(device, communication, 1, cob_id, f"TPDO{number} COB-ID (enable)")
         if self._sdo_read(device, communication, 2, f"TPDO{number} transmission type") != 1:
             self._sdo_write(device, communication, 2, 1, f"TPDO{number} transmission type 1")
-        device.tpdo_cob_id = cob_id & _STANDARD_ID_MASK
-        if device.tpdo_cob_id != _TPDO_COB_ID_BASES[number - 1] + device.config.node_id:
+        cob_id &= _STANDARD_ID_MASK
+        if cob_id != _TPDO_COB_ID_BASES[number - 1] + device.config.node_id:
             self._events.append(
-                f"{device.label}: TPDO{number} uses the non-default COB-ID "
-                f"0x{device.tpdo_cob_id:03X}"
+                f"{device.label}: TPDO{number} uses the non-default COB-ID 0x{cob_id:03X}"
             )
-        clash = self._tpdo_device.get(device.tpdo_cob_id)
+        clash = self._tpdo_device.get(cob_id)
         if clash is not None:
             raise self._error(
                 device,
-                f"TPDO COB-ID 0x{device.tpdo_cob_id:03X} is also used by "
-                f"{self._devices[clash].label}",
+                f"TPDO COB-ID 0x{cob_id:03X} is also used by {self._devices[clash].label}",
             )
+        return cob_id
 
     def _start(self, index: int) -> None:
         """NMT start, then wait for a heartbeat that says Operational (if heartbeats are on)."""
@@ -571,7 +712,9 @@ class LinkEncoderReader:
                 )
         else:
             self._nmt_state[index] = _UNKNOWN_STATE  # no heartbeat: the state is not monitored
-        self._tpdo_device[device.tpdo_cob_id] = index
+        for part, cob_id in enumerate(device.tpdo_cob_ids):
+            self._tpdo_device[cob_id] = index
+            self._tpdo_part[cob_id] = part
 
     def _reset_tracking(self, index: int) -> None:
         self._have_raw[index] = False

@@ -4,7 +4,7 @@ A programmatic `canopen.ObjectDictionary` rather than a vendor EDS: the driver r
 objects that CiA 301, CiA 406 (encoders) and CiA 404 (measuring devices) define, so it works
 with any conforming node without its EDS. Sources: CiA 301 communication objects; CiA 406
 objects as in the BEI, ifm RM9000 and Lika IF55 manuals; CiA 404 analogue-input objects as in
-the esd CAN-CBX-THERMO manual (0x6131, 0x6132, 0x9130).
+the esd CAN-CBX-THERMO manual (0x6131, 0x6132, 0x7130, 0x9130).
 """
 
 from __future__ import annotations
@@ -82,18 +82,21 @@ def sensor_object_dictionary() -> ObjectDictionary:
         _variable("Measuring units per revolution", 0x6001, 0, datatypes.UNSIGNED32, "rw")
     )
     od.add_object(_variable("Position value", 0x6004, 0, datatypes.INTEGER32, "ro"))
-    # CiA 404 measuring device, analogue input channel 1.
+    # CiA 404 measuring device, analogue input channels 1..6 (one for the contact force
+    # sensor, six for a force/torque sensor; 0x7130 is the 16-bit, 0x9130 the 32-bit PV).
     for index, name, data_type in (
         (0x6131, "AI physical unit PV", datatypes.UNSIGNED32),
         (0x6132, "AI decimal digits PV", datatypes.UNSIGNED8),
+        (0x7130, "AI input PV (16 bit)", datatypes.INTEGER16),
         (0x9130, "AI input PV", datatypes.INTEGER32),
     ):
         od.add_object(
             _compound(
                 ODArray(name, index),
-                [
-                    _variable("Number of entries", index, 0, datatypes.UNSIGNED8, "ro"),
-                    _variable(f"{name} 1", index, 1, data_type, "ro"),
+                [_variable("Number of entries", index, 0, datatypes.UNSIGNED8, "ro")]
+                + [
+                    _variable(f"{name} {channel}", index, channel, data_type, "ro")
+                    for channel in range(1, 7)
                 ],
             )
         )

@@ -22,6 +22,28 @@ class ForceReading:
 
 
 @dataclass(frozen=True)
+class WrenchReading:
+    """A six-axis force/torque sensor's answer to one SYNC (SI; NaN where not valid).
+
+    force_n, torque_nm: what the sensor measures in its own frame (for the emulated DYROS-JET
+    feet: the ground's wrench on the robot, the moment about the sensor's origin), tare
+    removed. valid: both TPDOs of this SYNC arrived. raw: the six process values last received.
+    Other fields as ForceReading.
+    """
+
+    label: str
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    valid: bool
+    age_s: float
+    stale: bool
+    raw: np.ndarray
+    nmt_state: str
+    heartbeat_age_s: float
+    heartbeat_lost: bool
+
+
+@dataclass(frozen=True)
 class LinkReading:
     """The link encoders' answers to one SYNC; arrays have one entry per configured encoder.
 
@@ -38,6 +60,7 @@ class LinkReading:
     heartbeat_timeout_factor x its heartbeat period.
     events: what happened on the bus since the previous reading (boot-ups, state changes,
     EMCY, late or short TPDOs), for the log.
+    wrenches: the six-axis force/torque sensors' answers (WrenchReading), if configured.
     """
 
     sync_time_s: float
@@ -53,8 +76,13 @@ class LinkReading:
     heartbeat_lost: np.ndarray
     force: ForceReading | None
     events: tuple[str, ...]
+    wrenches: tuple[WrenchReading, ...] = ()  # force/torque sensors, in configuration order
 
     @property
     def all_valid(self) -> bool:
-        """Every encoder (and the force sensor, if configured) answered this SYNC."""
-        return bool(self.valid.all()) and (self.force is None or self.force.valid)
+        """Every encoder (and every force or force/torque sensor configured) answered."""
+        return (
+            bool(self.valid.all())
+            and (self.force is None or self.force.valid)
+            and all(wrench.valid for wrench in self.wrenches)
+        )

@@ -40,3 +40,15 @@ def force_n_from_counts(
 ) -> float:
     """Force-sensor process value -> force (N): direction * raw * newtons_per_count - offset_n."""
     return direction * raw * newtons_per_count - offset_n
+
+
+def wrench_from_counts(
+    raw: np.ndarray,
+    si_per_count: np.ndarray,
+    force_offset_n: np.ndarray,
+    torque_offset_nm: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Six force/torque process values -> (force [N], moment [N m]), tare removed:
+    value = raw * si_per_count - offset, channels Fx Fy Fz Mx My Mz."""
+    values = np.asarray(raw, dtype=np.float64) * si_per_count
+    return values[:3] - force_offset_n, values[3:] - torque_offset_nm

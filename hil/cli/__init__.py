@@ -17,7 +17,9 @@ arguments or bad configuration (nothing was sent to any device).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import traceback
 
 from hil.cli.exit_codes import ExitCode
 from hil.cli.parser import build_parser
@@ -35,6 +37,14 @@ def main(argv: list[str] | None = None) -> int:
         return ExitCode.USAGE
     except KeyboardInterrupt:
         print("hil: interrupted", file=sys.stderr)
+        return ExitCode.FAILED
+    except Exception as exc:  # noqa: BLE001 - no traceback for the user; HIL_DEBUG=1 shows it
+        if os.environ.get("HIL_DEBUG"):
+            traceback.print_exc()
+        print(
+            f"hil {args.command}: {type(exc).__name__}: {exc} (set HIL_DEBUG=1 for the traceback)",
+            file=sys.stderr,
+        )
         return ExitCode.FAILED
 
 

@@ -11,16 +11,21 @@ from hil.bench.bus import DEFAULT_BUS_CYCLES, bus_report_text, run_bench_bus
 from hil.bench.common import BenchError, without_nan
 from hil.bench.log import DEFAULT_LOG_TICKS, log_report_text, run_bench_log
 from hil.bench.loop import DEFAULT_LOOP_TICKS, loop_report_text, run_bench_loop
+from hil.bench.soak import DEFAULT_SOAK_TICKS, run_soak, soak_report_text
 from hil.cli.common import checked_config
 from hil.cli.exit_codes import ExitCode
 from hil.wiring.emulation import EmulatorStartError
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    """`hil bench bus|loop [--json] [--cycles N]`."""
+    """`hil bench bus|loop|soak [--json] [--cycles N] [--seed S]`; soak exits 1 when a reaction
+    missed its bound, a row was lost or an exit state was misreported."""
     cycles = args.cycles
     if cycles is not None and cycles < 1:
         print(f"hil bench: --cycles must be >= 1, got {cycles}", file=sys.stderr)
+        return ExitCode.USAGE
+    if args.seed < 0:
+        print(f"hil bench: --seed must be >= 0, got {args.seed}", file=sys.stderr)
         return ExitCode.USAGE
     config = checked_config(args.config)
 
@@ -33,18 +38,19 @@ def cmd_bench(args: argparse.Namespace) -> int:
             report = run_bench_bus(config, cycles or DEFAULT_BUS_CYCLES, say=say)
             text = bus_report_text(report)
         elif args.what == "log":
-            report = run_bench_log(
-                config,
-                cycles or DEFAULT_LOG_TICKS,
-                say=say,
-                progress=None if not args.json else False,
-            )
+            bar = False if args.json else None  # None: a bar when stderr is a terminal
+            report = run_bench_log(config, cycles or DEFAULT_LOG_TICKS, say=say, progress=bar)
             text = log_report_text(report)
-        else:
+        elif args.what == "loop":
             report = run_bench_loop(config, cycles or DEFAULT_LOOP_TICKS, say=say)
             text = loop_report_text(report)
+        else:
+            report = run_soak(config, cycles or DEFAULT_SOAK_TICKS, seed=args.seed, say=say)
+            text = soak_report_text(report)
     except (EmulatorStartError, BenchError, BusError, OSError) as exc:
         print(f"hil bench {args.what}: {exc}", file=sys.stderr)
         return ExitCode.FAILED
     print(json.dumps(without_nan(report), allow_nan=False) if args.json else text)
+    if args.what == "soak" and not (report["all_within_bound"] and report["rows_lost"] == 0):
+        return ExitCode.FAILED
     return ExitCode.OK

@@ -17,6 +17,7 @@ from hil.wiring.emulation import emulator_spec, spec_from_json
 def cmd_emulate(args: argparse.Namespace) -> int:
     from sim_backend.server import serve
 
+    world: dict[str, object] = {}
     if args.spec_file is not None:  # from `hil run`'s embedded emulator
         spec = spec_from_json(Path(args.spec_file).read_text())
     else:
@@ -33,6 +34,8 @@ def cmd_emulate(args: argparse.Namespace) -> int:
             faults=faults,
             clock=EmulatorClock.REALTIME if args.realtime else None,
         )
+        # what a run attaching to it checks: is this the world of its experiment?
+        world = {"experiment": experiment.name if experiment else None}
         lockstep_note = (
             " (the plant advances one period per CAN SYNC; use --realtime for a free-running "
             "testbed)"
@@ -44,5 +47,5 @@ def cmd_emulate(args: argparse.Namespace) -> int:
             + ". Ctrl-C to stop.",
             file=sys.stderr,
         )
-    serve(spec)
+    serve(spec, extra=world)
     return ExitCode.OK

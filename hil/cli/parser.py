@@ -8,7 +8,7 @@ from pathlib import Path
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
 from hil.experiments import EXPERIMENTS
 
-BENCH_TARGETS = ("bus", "loop", "log")
+BENCH_TARGETS = ("bus", "loop", "soak", "log")
 
 
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
@@ -129,7 +129,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure the bus or the loop and print figures")
     bench.add_argument("what", choices=BENCH_TARGETS)
     bench.add_argument("--json", action="store_true")
-    bench.add_argument("--cycles", type=int, default=None, help="cycles per measurement")
+    bench.add_argument(
+        "--cycles", type=int, default=None, help="cycles per measurement (soak: ticks in all)"
+    )
+    bench.add_argument("--seed", type=int, default=0, help="soak: the faults' random seed")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
 
     _add_bringup(sub)

@@ -97,11 +97,35 @@ def _live(args: argparse.Namespace) -> tuple[MessageSink, ...]:
     return (publisher,)
 
 
+def _check_timeline(args: argparse.Namespace, faults: tuple, overruns: tuple) -> None:
+    """Refuse what would silently not happen: a fault after the run's end, an attached emulator
+    built for another experiment's world."""
+    if args.experiment is None:
+        return
+    duration = args.duration or get_experiment(args.experiment).duration_s
+    late = [f"{f.kind}@{f.start_s:g}" for f in faults if f.start_s >= duration]
+    late += [f"overrun@{start:g}" for start, _ in overruns if start >= duration]
+    if late:
+        raise ConfigError(
+            f"--inject {', '.join(late)}: after the run's end ({duration:g} s): it would never "
+            "happen"
+        )
+    if args.attach:
+        attached = load_attach(args.attach)
+        if "experiment" in attached and attached["experiment"] != args.experiment:
+            raise ConfigError(
+                f"--attach: that emulator was started for experiment "
+                f"{attached['experiment']!r}, not {args.experiment!r}: its world (block, pushes) "
+                f"is not this run's; start it with `hil emulate --experiment {args.experiment}`"
+            )
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     config = _configured(args)
     faults, overruns = parse_injections(args.inject)
     embedded = (args.config is None or args.emulate) and not (args.attach and args.config is None)
     _check_combinations(args, embedded, faults)
+    _check_timeline(args, faults, overruns)
     setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
     sinks = _live(args)
     try:

@@ -14,6 +14,7 @@ from hil.config.load import (
     default_config_text,
     load_config,
     parse_config,
+    robot_description_text,
 )
 from hil.config.schema import (
     CanSection,
@@ -43,4 +44,5 @@ __all__ = [
     "default_config_text",
     "load_config",
     "parse_config",
+    "robot_description_text",
 ]

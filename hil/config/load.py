@@ -162,3 +162,24 @@ def _location(loc: tuple[Any, ...], raw: dict[str, Any]) -> str:
         where = f"[{head}]"
     keys = ".".join(str(part) for part in rest)
     return f"{where} {keys}".strip()
+
+
+def robot_description_text(config: Config) -> str:
+    """The robot's URDF ([model] description): a path, or the name of one shipped with the
+    package (hil/data/robots/NAME or NAME.urdf)."""
+    name = config.model.description
+    if name is None:
+        raise ConfigError(f"{config.source} [model] description: missing (a URDF)")
+    path = Path(name).expanduser()
+    if path.is_file():
+        return path.read_text()
+    shipped = resources.files("hil").joinpath("data", "robots")
+    for candidate in (name, f"{name}.urdf"):
+        resource = shipped.joinpath(candidate)
+        if resource.is_file():
+            return resource.read_text()
+    known = sorted(p.name for p in shipped.iterdir() if p.name.endswith(".urdf"))
+    raise ConfigError(
+        f"{config.source} [model] description: {name!r} is neither a file nor one of the "
+        f"robots shipped with hil ({known})"
+    )

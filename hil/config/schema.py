@@ -15,8 +15,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from controller import COMPOSITION_READINGS
-from controller.model import DISCRETISATIONS
+from controller import (
+    COMPOSITION_READINGS,
+    LAB_KDIST_RAMP_S,
+    LINK_VELOCITY_INCREMENTS,
+    LQR_DESIGNS,
+)
 from hil.vocabulary import ControllerKind, EmulatorClock, Reaction, SafetyCause
 
 Direction = Literal[1, -1]
@@ -77,6 +81,17 @@ class ForceSensorSection(Section):
     offset_n: float = 0.0  # its reading with nothing touching (subtracted)
 
 
+class ForceTorqueSensorSection(Section):
+    """A six-axis force/torque sensor on CAN (the humanoid's feet: name them "left_foot" and
+    "right_foot"); its readings are logged as `<name>_fx_n` ... `<name>_mz_nm`."""
+
+    name: str = Field(min_length=1)
+    node_id: int = Field(ge=1, le=127)
+    can: str | None = None  # the channel it is on (None: the only one)
+    force_offset_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # readings at zero load
+    torque_offset_nm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 class JointSection(Section):
     """One flexible joint: its actuator, its link encoder, their mounting and its limits."""
 
@@ -93,6 +108,10 @@ class JointSection(Section):
     min_angle_rad: float = -1.0
     max_angle_rad: float = 1.0
     torque_limit_a: float | None = Field(None, gt=0)  # None: leave the device's Torque Limit
+    # The servo's gain registers (device units, as the e-Manual defines them; None: the device's)
+    position_p_gain: int | None = Field(None, ge=0, le=65535)
+    velocity_p_gain: int | None = Field(None, ge=0, le=65535)
+    velocity_i_gain: int | None = Field(None, ge=0, le=65535)
 
     @model_validator(mode="after")
     def _range(self) -> JointSection:
@@ -117,10 +136,17 @@ class ModelSection(Section):
 
     robot "single_link": every joint drives its own link swinging in a vertical plane
     (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
+    robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
+    a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
+    and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
+    off the 200 Hz path; `sm_coupling` "diagonal" (the lab's) or "full".
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
     """
 
-    robot: Literal["single_link"] = "single_link"
+    robot: Literal["single_link", "dyros-jet"] = "single_link"
+    description: str | None = None
+    sm_coupling: Literal["diagonal", "full"] = "diagonal"
+    gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
     stiffness_nm_per_rad: float = Field(2000.0, gt=0)
     damping_nms_per_rad: float = Field(100.0, ge=0)
     servo_gain_per_s: float = Field(10.0, gt=0)
@@ -135,28 +161,53 @@ class ModelSection(Section):
 
 
 class ControllerSection(Section):
+    """The controller (Kim et al. Sec. III) and its options; controller/controllers.py
+    ControllerParams says what each does. The choices are the controller package's own."""
+
     name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
     kdist: float = Field(1.0, ge=0)
+    kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
     q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
     q_state: float = Field(1.0, ge=0)
     r_input: float = Field(1.0, gt=0)
-    dob_cutoff_hz: float = Field(11.4, gt=0)
-    composition: str = "accumulated"
-    discretization: str = "euler"
+    dob_cutoff_hz: float | None = Field(None, gt=0)  # the Q filter by its cut-off, or ...
+    dob_filter_pole: float | None = Field(None, ge=0, lt=1)  # ... by its pole; neither: 0.7
+    composition: str = "accumulated"  # the reading of (25)
+    dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
+    discretization: str = "euler"  # the LQR design
+    link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")
     @classmethod
     def _composition(cls, value: str) -> str:
-        if value not in COMPOSITION_READINGS:
-            raise ValueError(f"must be one of {list(COMPOSITION_READINGS)}")
-        return value
+        return _one_of(value, COMPOSITION_READINGS)
 
     @field_validator("discretization")
     @classmethod
     def _discretization(cls, value: str) -> str:
-        if value not in DISCRETISATIONS:
-            raise ValueError(f"must be one of {list(DISCRETISATIONS)}")
-        return value
+        return _one_of(value, LQR_DESIGNS)
+
+    @field_validator("link_velocity_increment")
+    @classmethod
+    def _increment(cls, value: str) -> str:
+        return _one_of(value, LINK_VELOCITY_INCREMENTS)
+
+    @model_validator(mode="after")
+    def _filter_and_reading(self) -> ControllerSection:
+        if self.dob_cutoff_hz is not None and self.dob_filter_pole is not None:
+            raise ValueError("give dob_cutoff_hz or dob_filter_pole, not both")
+        if self.composition == "accumulated-integral" and self.dob_integral_time_s is None:
+            raise ValueError(
+                "composition 'accumulated-integral' needs dob_integral_time_s (the servo's "
+                "velocity-loop integral time; `hil identify` measures it)"
+            )
+        return self
+
+
+def _one_of(value: str, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise ValueError(f"must be one of {list(choices)}")
+    return value
 
 
 def _reaction(default: Reaction) -> Any:
@@ -188,6 +239,12 @@ class SafetySection(Section):
     link_noise_window_ticks: int = Field(20, ge=2)
     link_noise_fraction: float = Field(0.5, gt=0, le=1)
     overrun_window_s: float = Field(1.0, gt=0)
+    # Legal but dangerous: a DOB gain beyond what the paper used and the closed-loop analysis
+    # covers (controller/composition.py; tests/controller/test_closed_loop.py), and goals
+    # clipped at the position limits on most ticks (the controller is fighting the limits).
+    max_kdist: float = Field(1.0, ge=0)
+    goal_saturation_fraction: float = Field(0.5, gt=0, le=1)
+    goal_saturation_window_ticks: int = Field(200, ge=1)
     on_hardware_error: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_torque_lost: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_bus_error: Reaction = _reaction(Reaction.TORQUE_OFF)
@@ -196,6 +253,8 @@ class SafetySection(Section):
     on_deflection: Reaction = _reaction(Reaction.HOLD)
     on_current: Reaction = _reaction(Reaction.BACK_OFF)
     on_command_invalid: Reaction = _reaction(Reaction.HOLD)
+    on_goal_saturated: Reaction = _reaction(Reaction.HOLD)
+    on_gain_out_of_range: Reaction = _reaction(Reaction.HOLD)
     on_overrun: Reaction = _reaction(Reaction.HOLD)
     on_exit: Reaction = _reaction(Reaction.TORQUE_OFF)
 
@@ -226,6 +285,7 @@ class EmulatorSection(Section):
     seed: int = Field(0, ge=0)
     plant: dict[str, Any] = Field(default_factory=dict)  # plant parameter overrides
     servo: dict[str, Any] = Field(default_factory=dict)  # servo parameter overrides
+    sensor_noise: dict[str, Any] = Field(default_factory=dict)  # CAN sensors' noise overrides
     reboot_time_s: float = Field(0.5, gt=0)
 
 
@@ -236,6 +296,9 @@ class ConfigFile(Section):
     dynamixel: list[DynamixelSection] = Field(min_length=1)
     can: list[CanSection] = Field(min_length=1)
     force_sensor: ForceSensorSection = Field(default_factory=ForceSensorSection)
+    force_torque_sensors: list[ForceTorqueSensorSection] = Field(
+        default_factory=list, alias="force_torque_sensor"
+    )
     joints: list[JointSection] = Field(alias="joint", min_length=1)
     model: ModelSection = Field(default_factory=ModelSection)
     controller: ControllerSection = Field(default_factory=ControllerSection)
@@ -258,6 +321,11 @@ class ConfigFile(Section):
             _refers(f"[[joint]] {joint.name!r} dynamixel", joint.dynamixel, chains)
             _refers(f"[[joint]] {joint.name!r} can", joint.can, channels)
         _refers("[force_sensor] can", self.force_sensor.can, channels)
+        _unique("[[force_torque_sensor]] name", [f.name for f in self.force_torque_sensors])
+        for sensor in self.force_torque_sensors:
+            _refers(f"[[force_torque_sensor]] {sensor.name!r} can", sensor.can, channels)
+        if self.model.robot == "dyros-jet" and self.model.description is None:
+            raise ValueError("[model] description: the robot 'dyros-jet' needs its URDF")
         for chain in chains:
             ids = [j.dynamixel_id for j in self.joints if self.chain_of(j) == chain]
             _unique(f"dynamixel_id on chain {chain!r}", ids)
@@ -265,6 +333,7 @@ class ConfigFile(Section):
             nodes = [j.encoder_node_id for j in self.joints if self.channel_of(j) == channel]
             if self.force_sensor.node_id and self.force_sensor_channel == channel:
                 nodes.append(self.force_sensor.node_id)
+            nodes += [f.node_id for f in self.force_torque_sensors if self.channel_of(f) == channel]
             _unique(f"CAN node ID (encoders and force sensor) on channel {channel!r}", nodes)
         unknown = sorted(set(self.model.joint) - {j.name for j in self.joints})
         if unknown:
@@ -274,8 +343,8 @@ class ConfigFile(Section):
     def chain_of(self, joint: JointSection) -> str:
         return joint.dynamixel or self.dynamixel[0].name
 
-    def channel_of(self, joint: JointSection) -> str:
-        return joint.can or self.can[0].name
+    def channel_of(self, device: JointSection | ForceTorqueSensorSection) -> str:
+        return device.can or self.can[0].name
 
     @property
     def force_sensor_channel(self) -> str:

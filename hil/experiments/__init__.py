@@ -1,19 +1,21 @@
 """The experiments, one module each (see `base.py` for what an experiment holds).
 
-    contact   Kim et al., ICRA 2018, Fig. 5: the link driven into a block
-    impact    Kim et al., ICRA 2018, Fig. 6: an 80 N push while holding
+    contact       Kim et al., ICRA 2018, Fig. 5: the link driven into a block
+    impact        Kim et al., ICRA 2018, Fig. 6: an 80 N push while holding
+    contact-long  the contact held 30 s: does the compliance last?
+    impact-long   the impact held a minute: the error after the push at its equilibrium
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
 name that does not exist.
 """
 
 from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperiment, World
-from hil.experiments.contact import CONTACT
-from hil.experiments.impact import IMPACT
+from hil.experiments.contact import CONTACT, CONTACT_LONG
+from hil.experiments.impact import IMPACT, IMPACT_LONG
 
-EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (CONTACT, IMPACT)}
-# The experiments of the paper's testbed comparison (`hil run` without an experiment).
-TESTBED_COMPARISON: tuple[Experiment, ...] = (CONTACT, IMPACT)
+EXPERIMENTS: dict[str, Experiment] = {
+    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG)
+}
 
 
 def get_experiment(name: str) -> Experiment:
@@ -27,9 +29,10 @@ def get_experiment(name: str) -> Experiment:
 
 __all__ = [
     "CONTACT",
+    "CONTACT_LONG",
     "EXPERIMENTS",
     "IMPACT",
-    "TESTBED_COMPARISON",
+    "IMPACT_LONG",
     "Experiment",
     "Obstacle",
     "Push",

@@ -5,7 +5,8 @@ An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
                     it once per run on the loop's grid: no per-tick work)
     world           what the world does to the robot: an obstacle, pushes. On hardware the user
                     makes it happen; the emulator builds it from the same figures
-    phase           a named phase of the experiment at a time (a walk schedules Kdist by it)
+    phase           a named phase of the experiment at a time; on a humanoid, the support state
+                    (`support`) and a Kdist schedule (`kdist_at`) follow from it
     metrics         the figures it reports, over all joints, from a run's log
     marks           what its plots mark (the obstacle, the pushes, the first contact)
     comparison      its figure across controllers, the paper's claims it checks (`relations`)
@@ -69,11 +70,21 @@ class Obstacle:
 
 
 @dataclass(frozen=True)
+class PelvisPush:
+    """A push on the humanoid's pelvis: a constant force [N] (world frame) for a while."""
+
+    start_s: float
+    duration_s: float
+    force_n: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
 class World:
     """What the world does during the experiment (experiment time, from its start)."""
 
     pushes: tuple[Push, ...] = ()
     obstacle: Obstacle | None = None
+    pelvis_pushes: tuple[PelvisPush, ...] = ()
 
 
 class Experiment(abc.ABC):
@@ -106,6 +117,16 @@ class Experiment(abc.ABC):
     def phase(self, time_s: float) -> str:
         """The experiment's phase at `time_s` (a single phase unless an experiment has more)."""
         return self.name
+
+    def support(self, time_s: float) -> object | None:
+        """Which feet carry the robot at `time_s` (a `controller.humanoid.SupportState`), or
+        None for a robot without feet."""
+        return None
+
+    def kdist_at(self, time_s: float, kdist: float) -> np.ndarray | None:
+        """The DOB gain per joint at `time_s` when the experiment schedules it (the controller
+        ramps between values), or None: the run's constant `kdist`."""
+        return None
 
     # --- after a run -----------------------------------------------------------------------
     @abc.abstractmethod

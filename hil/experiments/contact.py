@@ -14,6 +14,8 @@ Metrics (from the run's log, loop time):
     mean_contact_force_n        mean force while in contact and every actuator still has torque
     overload_tripped            an actuator reported an overload (ActuatorFault.OVERLOAD)
     trip_time_after_contact_s   first overload report minus contact_time_s (None without a trip)
+    force_drift_n_per_s         slope of a line fitted to the force from DRIFT_AFTER_CONTACT_S
+                                after contact to the end (or the trip): a force that creeps
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from hil.output.rundir import RunData
 from hil.vocabulary import ControllerChoice, ControllerKind
 
 CONTACT_THRESHOLD_N = 1.0
+DRIFT_AFTER_CONTACT_S = 2.0  # past the reference's ramp (it ends 0.75 s after contact)
 
 # --- the paper's figures (Kim et al., ICRA 2018, Sec. IV-B, Fig. 5) -----------------------------
 PAPER_DOB_CONTACT_FORCE_N = (20.0, 40.0)  # "compliant to a small contact force (20N~40N)"
@@ -63,6 +66,17 @@ def overload_trip_s(run: RunData) -> float | None:
     return min(times) if times else None
 
 
+def _drift(
+    time: np.ndarray, force: np.ndarray, in_contact: np.ndarray, contact: float | None
+) -> float | None:
+    if contact is None:
+        return None
+    late = in_contact & (time >= contact + DRIFT_AFTER_CONTACT_S) & np.isfinite(force)
+    if np.count_nonzero(late) < 100:  # half a second at 200 Hz
+        return None
+    return float(np.polyfit(time[late], force[late], 1)[0])
+
+
 @dataclass(frozen=True)
 class ContactExperiment(TestbedExperiment):
     def metrics(self, run: RunData) -> dict[str, Any]:
@@ -82,6 +96,7 @@ class ContactExperiment(TestbedExperiment):
             "trip_time_after_contact_s": (
                 trip - contact if trip is not None and contact is not None else None
             ),
+            "force_drift_n_per_s": _drift(run.time_s, force, in_contact, contact),
         }
 
     def marks(self, run: RunData) -> WorldMarks:
@@ -102,6 +117,7 @@ class ContactExperiment(TestbedExperiment):
             Column("mean_contact_force_n", "mean force [N]", number(".1f")),
             Column("overload_tripped", "overload trip", number("")),
             Column("trip_time_after_contact_s", "trip after contact [s]", number(".2f")),
+            Column("force_drift_n_per_s", "force drift [N/s]", number(".2f")),
         )
 
     def comparison_figure(
@@ -303,3 +319,57 @@ def _draw_contact_run(angle_ax: Any, force_ax: Any, entry: ComparisonRun) -> flo
                 color=style.color,
             )
     return contact
+
+
+@dataclass(frozen=True)
+class LongContactExperiment(ContactExperiment):
+    """The contact, held 30 s: does the force stay where it was, or creep into the overload?"""
+
+    @property
+    def figure_name(self) -> str:
+        return "fig5_contact_long.png"
+
+    def relations(self, entries: Sequence[RunEntry]) -> list[Relation]:
+        return long_contact_relations(self.name, entries)
+
+
+CONTACT_LONG = LongContactExperiment(
+    name="contact-long",
+    title="Object contact (Fig. 5) held for 30 s: compliance that lasts",
+    duration_s=32.0,
+    initial_angle_rad=0.0,
+    ramps=CONTACT.ramps,
+    world=CONTACT.world,
+)
+
+
+def long_contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
+    """The paper's compliance claim (20-40 N, no trip) over 30 s, for each DOB run."""
+    low, high = PAPER_DOB_CONTACT_FORCE_N
+    relations = []
+    for entry in (e for e in entries if e.experiment == exp and e.choice.kind.has_dob):
+        label = entry.choice.label
+
+        def lasting(entry: RunEntry = entry, label: str = label) -> tuple[bool, str]:
+            contact = metric(entry, "contact_time_s", label)
+            if contact is None:
+                raise Missing(f"the {label} run never touched the block")
+            peak = metric(entry, "peak_contact_force_n", label)
+            drift = metric(entry, "force_drift_n_per_s", label)
+            tripped = metric(entry, "overload_tripped", label)
+            after = metric(entry, "trip_time_after_contact_s", label)
+            trip = f"TRIPPED {after:.1f} s after contact" if tripped else "no trip"
+            drift_text = "-" if drift is None else f"{drift:+.2f}"
+            ours = f"peak {peak:.1f} N, drift {drift_text} N/s, {trip}"
+            return (not tripped) and peak <= high, ours
+
+        relations.append(
+            check(
+                exp,
+                f"{label} stays compliant over 30 s of contact",
+                f"{low:g}-{high:g} N, no trip",
+                lasting,
+                f"holds when there is no trip and the force never exceeds {high:g} N",
+            )
+        )
+    return relations

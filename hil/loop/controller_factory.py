@@ -9,10 +9,10 @@ from controller import (
     FlexibleJointParams,
     JointController,
     LqrWeights,
-    PendulumGravity,
     make_controller,
 )
-from hil.config import Config
+from hil.config import Config, ConfigError
+from hil.loop.robot_model import RobotModel, robot_model
 from hil.vocabulary import ControllerChoice
 
 
@@ -31,11 +31,27 @@ def joint_params(config: Config) -> FlexibleJointParams:
     )
 
 
-def build_controller(config: Config, choice: ControllerChoice, period_s: float) -> JointController:
-    """The chosen controller for the configured robot (single links: Sm = 1/I, a pendulum's
-    gravity with m r per joint)."""
+def build_controller(
+    config: Config,
+    choice: ControllerChoice,
+    period_s: float,
+    robot: RobotModel | None = None,
+    start_rad: np.ndarray | None = None,
+    support: object = None,
+) -> JointController:
+    """The chosen controller for the configured robot (hil/loop/robot_model.py), its LQR
+    designed on the Sm of the start posture `start_rad` (the experiment's first reference) and
+    support state."""
     section = config.controller
     n = len(config.joints)
+    robot = robot or robot_model(config)
+    start = np.zeros(n) if start_rad is None else np.asarray(start_rad, dtype=float)
+    reading = choice.reading or section.composition
+    if reading == "accumulated-integral" and section.dob_integral_time_s is None:
+        raise ConfigError(
+            f"{config.source} [controller] dob_integral_time_s: the reading "
+            "'accumulated-integral' needs it (the servo's velocity-loop integral time)"
+        )
     params = ControllerParams(
         joints=joint_params(config),
         lqr_weights=LqrWeights(
@@ -44,12 +60,15 @@ def build_controller(config: Config, choice: ControllerChoice, period_s: float) 
             input_increment_weight=section.r_input,
         ),
         kdist=choice.kdist,
+        kdist_ramp_s=section.kdist_ramp_s,
         dob_cutoff_hz=section.dob_cutoff_hz,
-        composition=choice.reading or section.composition,  # type: ignore[arg-type]
+        dob_filter_pole=section.dob_filter_pole,
+        composition=reading,  # type: ignore[arg-type]
+        dob_integral_time_s=(
+            section.dob_integral_time_s if reading == "accumulated-integral" else None
+        ),
         discretisation=section.discretization,  # type: ignore[arg-type]
+        link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
     )
-    model = config.model
-    sm = np.eye(n) / model.link_inertia_kg_m2
-    # m*r is all the pendulum model needs: pass it as a mass at unit distance.
-    gravity = PendulumGravity(np.full(n, model.gravity_moment_kg_m), np.ones(n))
-    return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=gravity)
+    sm = robot.sm(start, support)
+    return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

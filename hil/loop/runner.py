@@ -34,13 +34,15 @@ import can
 import numpy as np
 
 from controller import JointController
-from drivers.joint_bus import BusError, JointBus, JointSample
+from drivers.joint_bus import BusError, JointBus, JointSample, wrench_keys
 from hil.config import Config
 from hil.experiments import Experiment
 from hil.loop.clock import LoopClock, Tick
 from hil.loop.controller_factory import build_controller, joint_params
+from hil.loop.gain_scheduler import GainScheduler
 from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import RunRequest, StopFlag
+from hil.loop.robot_model import robot_model
 from hil.loop.start_gate import StartRefused, start_gate
 from hil.loop.timeline import Phase, Timeline
 from hil.output.records import RunResult
@@ -100,11 +102,37 @@ class Loop:
         )
         low, high = self.experiment.reference_range(n)
         self.supervisor.check_reference(low, high)
-        self.controller: JointController = build_controller(config, request.choice, self.period)
-        self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
-        self.log = RunLog(
-            request.out_dir, config.joint_names, meta, mcap=request.mcap, sinks=request.sinks
+        self.robot = robot_model(config)
+        self.controller: JointController = build_controller(
+            config,
+            request.choice,
+            self.period,
+            self.robot,
+            np.broadcast_to(self.experiment.reference(0.0), (n,)),
+            self.experiment.support(0.0),
         )
+        self.scheduler: GainScheduler | None = None
+        if self.robot.rescheduled and request.choice.kind.has_lqr:
+            self.scheduler = GainScheduler(
+                self.robot,
+                self.controller,
+                self.period,
+                config.model.gain_reschedule_period_s,
+                threaded=not clock.deterministic,
+            )
+        self._support: object = None
+        self._kdist: np.ndarray | None = None
+        self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
+        self.sensor_columns = sensor_columns(config)
+        self.log = RunLog(
+            request.out_dir,
+            config.joint_names,
+            meta,
+            self.sensor_columns,
+            mcap=request.mcap,
+            sinks=request.sinks,
+        )
+        self._sensor_values = [math.nan] * len(self.sensor_columns)
         self.homing: HomingPlan | None = None
         self.references = np.zeros((0, n))
         self.torque = _TorqueState()
@@ -239,6 +267,9 @@ class Loop:
         self._log_safety()
         if k == 0:  # this tick's sample predates the enable: expect torque from the next one on
             self.supervisor.torque_enabled(self._hold_goal)
+            if self.request.choice.kind.has_dob:
+                self.supervisor.check_settings(self.request.choice.kdist)
+                self._log_safety()
         self._torque_off_if_latched(k, time_s, sample)
 
     def _torque_off_if_latched(self, k: int, time_s: float, sample: JointSample) -> None:
@@ -267,14 +298,31 @@ class Loop:
             return reference  # the actuator's own servo follows the ramp
         if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
             return None
+        self._schedule(k, link)
         controller = self.controller
-        if not self._controller_started:
-            controller.reset(sample.motor_angle_rad, link, reference)
+        if not self._controller_started:  # bumpless: from the goal the servo is driven with
+            controller.reset(sample.motor_angle_rad, link, reference, self._last_goal)
             self._controller_started = True
         elif k - self._last_step_tick > 1:  # ticks without a step: do not read them as motion
             controller.resync(sample.motor_angle_rad, link)
         self._last_step_tick = k
         return controller.step(sample.motor_angle_rad, link, reference)
+
+    def _schedule(self, k: int, link: np.ndarray) -> None:
+        """What the experiment's phase sets: the support state (gravity compensator, Sm and the
+        LQR gain), and a Kdist schedule (the controller ramps between values)."""
+        time_s = self.timeline.experiment_time_s(k)
+        support = self.experiment.support(time_s)
+        if support != self._support:
+            self.robot.set_support(support)
+            self._support = support
+        if self.scheduler is not None:
+            self.scheduler.update(k, link, support)
+        if self.request.choice.kind.has_dob:
+            kdist = self.experiment.kdist_at(time_s, self.request.choice.kdist)
+            if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):
+                self.controller.set_kdist(kdist)
+                self._kdist = np.array(kdist, dtype=float)
 
     def _injected_overrun(self, time_s: float) -> bool:
         for start, duration in self.request.overruns:
@@ -295,10 +343,13 @@ class Loop:
     ) -> None:
         terms = self.controller.terms if self._controller_started else None
         zeros = self._zeros
+        extra, values = sample.extra, self._sensor_values
+        for i, name in enumerate(self.sensor_columns):
+            values[i] = extra.get(name, math.nan)
         self.log.write_row(
             tick.index,
             tick.time_s,
-            (sample.extra.get("contact_force_n", math.nan),),
+            values,
             self.supervisor.state.name.lower(),
             phase.value,
             tick.skipped,
@@ -391,6 +442,8 @@ class Loop:
         return notes
 
     def _finish(self, wall_time_s: float) -> None:
+        if self.scheduler is not None:
+            self.scheduler.close()
         self._log_safety()
         exit_notes = self._exit_path()
         metrics = self._metrics()
@@ -410,6 +463,7 @@ class Loop:
             "homing": self.homing.to_dict() if self.homing is not None else None,
             "experiment_start_s": self.timeline.experiment_start_s,
             "current_limit_a": self.current_limits.tolist(),
+            "gain_schedule": self.scheduler.schedule.record() if self.scheduler else None,
             "metrics": metrics,
         }
         self.log.write_summary(summary)
@@ -434,6 +488,15 @@ class Loop:
             return self.experiment.metrics(dataclasses.replace(run, summary=summary))
         except (ValueError, KeyError) as exc:
             return {"error": str(exc)}
+
+
+def sensor_columns(config: Config) -> tuple[str, ...]:
+    """The robot's named sensors, logged every tick: the obstacle's force sensor, and six
+    columns per force/torque sensor."""
+    columns = ["contact_force_n"] if config.force_sensor.node_id else []
+    for sensor in config.force_torque_sensors:
+        columns += wrench_keys(sensor.name)
+    return tuple(columns)
 
 
 def run_experiment(

@@ -130,9 +130,15 @@ def number(digits: str) -> Callable[[Any], str]:
 
 
 def _columns_for(entries: Sequence[RunEntry], known: Sequence[Column]) -> list[Column]:
+    """The known columns these runs have, then any other numeric metric (text, such as a
+    note on why a figure is missing, stays in report.json)."""
     keys: list[str] = []
     for entry in entries:
-        keys += [k for k in entry.result.metrics if k not in keys]
+        keys += [
+            k
+            for k, v in entry.result.metrics.items()
+            if k not in keys and (v is None or isinstance(v, int | float))
+        ]
     by_key = {c.key: c for c in known}
     ordered = [c for c in known if c.key in keys]
     return ordered + [Column(k, k, number(".4g")) for k in keys if k not in by_key]

@@ -7,12 +7,16 @@ What it does each tick, in this order:
    reported once per joint (once per fault code for actuator faults);
 3. shape the command (`command`): in normal running, reject a non-finite goal
    (`command_invalid`), clip each goal to its joint's position limits and to the goal rate
-   limit; in a safe state, replace it:
+   limit (a goal clipped at a limit on more than `goal_saturation_fraction` of the last
+   `goal_saturation_window_ticks` ticks is `goal_saturated`: the controller is fighting the
+   limits); in a safe state, replace it:
        hold        keep the motor where it was when the state was entered
        back_off    move the goal `current_guard_backoff_rad` away from the direction the motor
                    was pushing (sign of its current: relieves a load or a contact), then hold
        torque_off  torque off on every joint (the loop calls `bus.disable()`), no more goals
    A later, more severe cause escalates (hold -> back_off -> torque_off), never the reverse.
+Settings that are legal but dangerous are a cause too (`check_settings`, at the start): a DOB
+gain beyond `max_kdist` (`gain_out_of_range`).
 Recovery is never automatic: a latched safe state lasts until the run ends; clearing an
 actuator's fault takes an explicit `hil reboot` or `hil run --reboot-first` (see
 hil/loop/homing.py for the slow re-homing that follows).
@@ -109,6 +113,10 @@ class Supervisor:
         )
         self._clipped_total = np.zeros(n, dtype=int)
         self._rate_limited_total = np.zeros(n, dtype=int)
+        window = safety.goal_saturation_window_ticks
+        self._clipped_recent = np.zeros((window, n), dtype=bool)
+        self._clipped_recent_count = np.zeros(n, dtype=int)
+        self._saturation_trip = np.ceil(safety.goal_saturation_fraction * window)
 
     # --- lifecycle -------------------------------------------------------------------------
     def torque_enabled(self, goal_rad: np.ndarray) -> None:
@@ -237,6 +245,7 @@ class Supervisor:
     def _limit(self, goal: np.ndarray) -> np.ndarray:
         clipped = np.clip(goal, self.min_goal, self.max_goal)
         at_limit = clipped != goal
+        self._watch_saturation(at_limit)
         if at_limit.any():
             self._clipped_total += at_limit
             for i in np.flatnonzero(at_limit):
@@ -254,6 +263,33 @@ class Supervisor:
         self._rate_limited_total += limited != clipped
         # the last goal is inside the limits, so the rate-limited goal is too
         return limited
+
+    def _watch_saturation(self, at_limit: np.ndarray) -> None:
+        slot = self._tick % self._clipped_recent.shape[0]
+        self._clipped_recent_count += at_limit.astype(int) - self._clipped_recent[slot]
+        self._clipped_recent[slot] = at_limit
+        window = self._clipped_recent.shape[0]
+        for i in np.flatnonzero(self._clipped_recent_count >= self._saturation_trip):
+            self.trip(
+                SafetyCause.GOAL_SATURATED,
+                int(i),
+                f"the goal was clipped at joint {self.names[i]!r}'s position limits on "
+                f"{self._clipped_recent_count[i]} of the last {window} ticks: the controller "
+                "is driving against the limits",
+            )
+
+    def check_settings(self, kdist: np.ndarray | float) -> None:
+        """Settings that are legal but outside what the analysis covers (`max_kdist`)."""
+        gain = np.broadcast_to(np.asarray(kdist, dtype=float), self.min_goal.shape)
+        limit = self.safety.max_kdist
+        for i in np.flatnonzero(gain > limit):
+            self.trip(
+                SafetyCause.GAIN_OUT_OF_RANGE,
+                int(i),
+                f"Kdist {gain[i]:g} is beyond max_kdist = {limit:g} (the paper's largest gain, "
+                "and the edge of the closed-loop analysis): not run; raise [safety] max_kdist "
+                "to run it knowingly",
+            )
 
     def _safe_goal(self, sample: JointSample) -> np.ndarray | None:
         """Where to hold: the motor's present angle (the last goal where it is unknown);

@@ -6,10 +6,10 @@ emulation.py    the emulator's spec from the file and an experiment; the emulato
 in_process.py   a JointBus on the emulated plant in this process (fast loop tests)
 """
 
+from hil.wiring.checks import check_devices
 from hil.wiring.connection import Connection, SerialEndpoint
 from hil.wiring.hardware import (
     bus_config,
-    check_devices,
     configured_current_limits_a,
     encoder_counts_per_rev,
     make_bus,

@@ -28,7 +28,7 @@ from hil.vocabulary import EmulatorClock
 from hil.wiring.hardware import encoder_counts_per_rev
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import FaultEvent, PushEvent, Scenario
-from sim_backend.server import EmulatedJointSpec, EmulatorSpec
+from sim_backend.server import EmulatedJointSpec, EmulatorSpec, SensorNoise
 from sim_backend.servo import H54ServoParams
 
 STARTUP_TIMEOUT_S = 30.0
@@ -52,17 +52,27 @@ def experiment_scenario(
     )
 
 
-def plant_and_servo(
+def plant_servo_noise(
     config: Config, initial_angle_rad: float | None = None
-) -> tuple[TestbedPlantParams, H54ServoParams]:
-    """The emulated plant's and servo's parameters: [emulator] plant/servo over the defaults."""
-    overrides = dict(config.emulator.plant)
+) -> tuple[TestbedPlantParams, H54ServoParams, SensorNoise]:
+    """The emulated plant's, servo's and sensors' parameters: [emulator] plant / servo /
+    sensor_noise over their defaults."""
+    emulator = config.emulator
+    overrides = dict(emulator.plant)
     if initial_angle_rad is not None:
         overrides.setdefault("initial_link_angle_rad", initial_angle_rad)
-    try:
-        return TestbedPlantParams(**overrides), H54ServoParams(**config.emulator.servo)
-    except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
-        raise ConfigError(f"{config.source} [emulator]: {exc}") from exc
+    parts = (
+        ("plant", TestbedPlantParams, overrides),
+        ("servo", H54ServoParams, emulator.servo),
+        ("sensor_noise", SensorNoise, emulator.sensor_noise),
+    )
+    built = []
+    for key, cls, values in parts:
+        try:
+            built.append(cls(**values))
+        except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
+            raise ConfigError(f"{config.source} [emulator] {key}: {exc}") from exc
+    return built[0], built[1], built[2]
 
 
 def emulator_spec(
@@ -81,7 +91,7 @@ def emulator_spec(
     initial = None
     if experiment is not None:
         initial = float(np.atleast_1d(experiment.reference(0.0))[0])
-    plant, servo = plant_and_servo(config, initial)
+    plant, servo, noise = plant_servo_noise(config, initial)
     joints = tuple(
         EmulatedJointSpec(
             dxl_id=j.dynamixel_id,
@@ -110,6 +120,7 @@ def emulator_spec(
             servo=servo,
             scenario=experiment_scenario(experiment, faults),
             reboot_time_s=config.emulator.reboot_time_s,
+            sensor_noise=noise,
         )
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
@@ -140,6 +151,7 @@ def spec_from_json(text: str) -> EmulatorSpec:
         scenario=Scenario.from_dict(raw["scenario"]),
         reboot_time_s=raw["reboot_time_s"],
         heartbeat_ms=raw["heartbeat_ms"],
+        sensor_noise=SensorNoise(**raw["sensor_noise"]),
     )
 
 

@@ -2,8 +2,8 @@
 
 The same function builds the bus for the real robot and for an emulated one; only the ports
 differ (`Connection`). Device checks (ID ranges, baud rates, current limits, position ranges)
-are the drivers' own: `check_devices` builds every driver configuration without opening a port,
-so a bad value is refused before anything is sent, in every mode.
+are the drivers' own: `hil.wiring.checks.check_devices` builds every driver configuration
+without opening a port, so a bad value is refused before anything is sent, in every mode.
 
 In lock-step emulation the timeouts are widened: the emulator answers every request, but a
 loaded machine may delay it by tens of milliseconds, and a timeout that fired on such a delay
@@ -17,7 +17,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from drivers.canbus import RLC2IC_MR075_COUNTS_PER_REV, ForceSensorConfig, LinkEncoderConfig
+from drivers.canbus import (
+    RLC2IC_MR075_COUNTS_PER_REV,
+    ForceSensorConfig,
+    ForceTorqueSensorConfig,
+    LinkEncoderConfig,
+)
 from drivers.dynamixel import DynamixelChainConfig, DynamixelJointConfig, model_number
 from drivers.dynamixel_can_bus import CanChannelConfig, DynamixelCanBus, DynamixelCanBusConfig
 from hil.config import Config, ConfigError, JointSection
@@ -56,6 +61,9 @@ def _chain_config(config: Config, chain: str, connection: Connection) -> Dynamix
             min_position_rad=j.min_angle_rad,
             max_position_rad=j.max_angle_rad,
             torque_limit_a=j.torque_limit_a,
+            position_p_gain=j.position_p_gain,
+            velocity_p_gain=j.velocity_p_gain,
+            velocity_i_gain=j.velocity_i_gain,
             name=j.name,
         )
         for j in config.joints
@@ -94,7 +102,18 @@ def _channel_config(config: Config, channel: str, connection: Connection) -> Can
             offset_n=sensor.offset_n,
             stale_after_s=stale_after_s,
         )
-    return CanChannelConfig(channel, dict(connection.can[channel]), encoders, force)
+    wrenches = tuple(
+        ForceTorqueSensorConfig(
+            node_id=f.node_id,
+            label=f.name,
+            force_offset_n=f.force_offset_n,
+            torque_offset_nm=f.torque_offset_nm,
+            stale_after_s=stale_after_s,
+        )
+        for f in config.force_torque_sensors
+        if config.channel_of(f) == channel
+    )
+    return CanChannelConfig(channel, dict(connection.can[channel]), encoders, force, wrenches)
 
 
 def bus_config(
@@ -114,14 +133,6 @@ def bus_config(
         ),
         read_only=read_only,
     )
-
-
-def check_devices(config: Config) -> None:
-    """Every device figure the drivers check, checked now (no port is opened): ConfigError."""
-    try:
-        bus_config(config, Connection.from_config(config, require_ports=False))
-    except ValueError as exc:
-        raise ConfigError(f"{config.source}: {exc}") from exc
 
 
 def make_bus(

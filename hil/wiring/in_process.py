@@ -24,13 +24,14 @@ from drivers.joint_bus import (
     JointBus,
     JointDevices,
     JointSample,
+    add_wrench,
 )
 from hil.config import Config
 from hil.experiments import Experiment
 from hil.wiring.emulation import emulator_spec
 from sim_backend.direct import DirectTestbed
 from sim_backend.scenario import FaultEvent
-from sim_backend.server import EmulatorSpec
+from sim_backend.spec import EmulatorSpec
 
 INPUT_VOLTAGE_V_PER_UNIT = 0.1  # Present Input Voltage (623) is in 0.1 V (e-Manual H54)
 
@@ -136,6 +137,11 @@ class InProcessJointBus(JointBus):
                     BusFault(i, DeviceRole.LINK_SENSOR, devices[i].link_sensor, "no answer")
                 )
         sample.extra["contact_force_n"] = reading.contact_force_n
+        for sensor, wrench in zip(self.config.force_torque_sensors, reading.wrenches, strict=False):
+            if wrench is None:
+                add_wrench(sample.extra, sensor.name, np.full(3, np.nan), np.full(3, np.nan))
+            else:
+                add_wrench(sample.extra, sensor.name, *wrench)
         self._diagnostics(testbed, sample)
         return sample
 

@@ -25,6 +25,14 @@ Position (counts), latched at SYNC from the plant's true link angle:
 where s = -1 when the code-sequence bit is set, else +1, and `direction` is the mounting
 direction of the read head. Rounding is half-up, so any angle maps to the count within half a
 count of it. The speed object 0x6030 is not emulated.
+
+Noise (`noise_counts_rms`, 0 unless given; the emulator passes `SensorNoise`'s nominal figure):
+zero-mean Gaussian in counts added to the latched value before rounding, seeded (`seed`). The
+read head interpolates the ring's magnetic field 8192 times per 2 mm pole; its interpolation
+noise makes the count flicker at a count edge. RLS's data sheet (RLCD02 issue 2) gives the
+resolution, not a jitter figure; 0.5 count rms (`RLC2IC_NOISE_COUNTS_RMS`) makes the reading
+flicker by about one count (rms error of the rounded reading sqrt(0.5^2 + 1/12) = 0.58 count,
+3.7 urad), an assumption to be replaced by a measured figure.
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ EncoderFault = SensorFault  # the fault type of an encoder node (noise in counts
 
 ENCODER_EDS_FILE = "emulated_cia406_link_encoder.eds"
 RLC2IC_MR075_COUNTS_PER_REV = 120 * 8192  # 983,040
+RLC2IC_NOISE_COUNTS_RMS = 0.5  # nominal interpolation noise (see the module docstring)
 
 _OPERATING_PARAMETERS = 0x6000
 _PRESET_VALUE = 0x6003
@@ -53,7 +62,8 @@ class LinkEncoderNode(CanopenSlave):
     """A CiA 406 link-encoder node; see the module docstring for its objects and behaviour.
 
     angle_source: returns the true link angle (rad) at the instant it is called; called once per
-    SYNC that the node answers (and per SDO read of 0x6004).
+    SYNC that the node answers (and per SDO read of 0x6004). noise_counts_rms: the read head's
+    noise (0: an ideal counter; the emulator passes the nominal `RLC2IC_NOISE_COUNTS_RMS`).
     """
 
     def __init__(
@@ -66,6 +76,7 @@ class LinkEncoderNode(CanopenSlave):
         heartbeat_ms: int = 100,
         seed: int = 0,
         tpdo_transmission_type: int = 1,
+        noise_counts_rms: float = 0.0,
     ) -> None:
         if not callable(angle_source):
             raise TypeError("angle_source must be a callable returning the link angle in rad")
@@ -85,6 +96,7 @@ class LinkEncoderNode(CanopenSlave):
             seed=seed,
             tpdo_transmission_type=tpdo_transmission_type,
             serial_number=0x4060_0000 + node_id,
+            process_noise_rms=noise_counts_rms,
         )
         self._store.set_default(0x6001, 0, counts_per_rev)
         self._store.set_default(0x6501, 0, counts_per_rev)

@@ -18,6 +18,11 @@ in TPDO1, with the object dictionary of `sim_backend/data/emulated_cia404_force_
 
 resolution 1 mN, range +-2.1 MN. Faults as for every emulated node (`SensorFault`); the noise
 is in PV units (mN rms).
+
+Noise (`noise_n_rms`, 0 unless given; the emulator passes `SensorNoise`'s nominal figure):
+zero-mean Gaussian in newtons added before rounding, seeded (`seed`). The paper names no sensor,
+so the figure is an ASSUMPTION: 0.05 N rms (`FORCE_SENSOR_NOISE_N_RMS`), 0.05 % of a 100 N
+range, the order of a strain-gauge load cell read through a bridge amplifier.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from sim_backend.canbus.object_store import eds_path
 from sim_backend.canbus.slave import CanopenSlave
 
 FORCE_SENSOR_EDS_FILE = "emulated_cia404_force_sensor.eds"
+FORCE_SENSOR_NOISE_N_RMS = 0.05  # nominal (an assumption; see the module docstring)
 
 _PHYSICAL_UNIT = 0x6131
 _DECIMAL_DIGITS = 0x6132
@@ -38,7 +44,8 @@ class ForceSensorNode(CanopenSlave):
     """A CiA 404 force-sensor node; see the module docstring for its objects and behaviour.
 
     force_source: returns the contact force (N) at the instant it is called; called once per
-    SYNC that the node answers (and per SDO read of 0x9130:01).
+    SYNC that the node answers (and per SDO read of 0x9130:01). noise_n_rms: the sensor's noise
+    (0: ideal; the emulator passes the nominal `FORCE_SENSOR_NOISE_N_RMS`).
     """
 
     def __init__(
@@ -49,6 +56,7 @@ class ForceSensorNode(CanopenSlave):
         heartbeat_ms: int = 100,
         seed: int = 0,
         tpdo_transmission_type: int = 1,
+        noise_n_rms: float = 0.0,
     ) -> None:
         if not callable(force_source):
             raise TypeError("force_source must be a callable returning the force in N")
@@ -67,6 +75,7 @@ class ForceSensorNode(CanopenSlave):
         prefix_exponent = int.from_bytes(bytes([unit >> 24]), "little", signed=True)
         decimal_digits = int(self._store.stored_value(_DECIMAL_DIGITS, 1))
         self._counts_per_newton = 10.0 ** (decimal_digits - prefix_exponent)
+        self._set_process_noise(noise_n_rms * self._counts_per_newton)
 
     def _ideal_raw(self) -> float:
         return float(self._force_source()) * self._counts_per_newton

@@ -26,8 +26,13 @@ WriteValidator = Callable[[Any], SdoAbortCode | None]  # an abort code refuses t
 
 
 def eds_path(file_name: str) -> Path:
-    """Path of an EDS file shipped in `sim_backend/data/`."""
-    path = Path(str(resources.files("sim_backend") / "data" / file_name))
+    """Path of an EDS file shipped in `sim_backend/data/`.
+
+    Located from this module's package (sim_backend.canbus), not from the top-level name: a
+    folder `tests/sim_backend/` on sys.path makes `sim_backend` resolve to a namespace package
+    there when the product is installed in editable mode, and resources.files("sim_backend")
+    would then look in the tests."""
+    path = Path(str(resources.files("sim_backend.canbus"))).parent / "data" / file_name
     if not path.is_file():
         raise FileNotFoundError(f"EDS file {file_name!r} not found in {path.parent}")
     return path

@@ -30,6 +30,10 @@ Faults (`SensorFault`, mutable, looked at on every call):
   the fault began; NMT, SDO and heartbeat keep working.
 - "noisy": zero-mean Gaussian noise of `noise_counts_rms` (in the device's raw units) is added
   before rounding, from a numpy Generator seeded by `seed` (deterministic).
+
+Nominal noise (`process_noise_rms`, raw units, 0 by default): the sensor's own measurement noise,
+zero-mean Gaussian added to every sample before rounding, from the same seeded Generator (a
+"noisy" fault adds its noise on top). Same seed, same calls: the same values.
 """
 
 from __future__ import annotations
@@ -130,6 +134,7 @@ class CanopenSlave(abc.ABC):
         seed: int,
         tpdo_transmission_type: int,
         serial_number: int,
+        process_noise_rms: float = 0.0,
     ) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"CANopen node ID must be 1..127, got {node_id}")
@@ -144,6 +149,8 @@ class CanopenSlave(abc.ABC):
             )
         self.node_id = node_id
         self.fault = SensorFault()
+        self._process_noise_rms = 0.0
+        self._set_process_noise(process_noise_rms)
         self._store = ObjectStore(eds_file, node_id)
         self._store.set_default(_HEARTBEAT_TIME, 0, heartbeat_ms)
         self._store.set_default(_TPDO_COMMUNICATION, 2, tpdo_transmission_type)
@@ -222,6 +229,15 @@ class CanopenSlave(abc.ABC):
             self._next_event_us = self._advance(self._next_event_us, self._event_period_us())
         return out
 
+    def sample(self, now_s: float) -> int | None:
+        """The raw process value a SYNC at `now_s` would latch (None while the node is dead):
+        the same noise, fault and rounding, the same random draws as on the bus. For running the
+        emulated robot in-process (sim_backend.direct), where no frames are exchanged."""
+        self._prologue(now_s)
+        if self.fault.mode == "dead":
+            return None
+        return self._sample_raw()
+
     # --- for subclasses --------------------------------------------------------------------
     @abc.abstractmethod
     def _ideal_raw(self) -> float:
@@ -234,6 +250,12 @@ class CanopenSlave(abc.ABC):
         """A device object was written by SDO (after validation and storage); optional hook."""
 
     # --- process value ---------------------------------------------------------------------
+    def _set_process_noise(self, rms_raw: float) -> None:
+        """The sensor's nominal noise, rms in raw units (for subclasses that scale a figure)."""
+        if not (math.isfinite(rms_raw) and rms_raw >= 0.0):
+            raise ValueError(f"the sensor noise must be a finite rms >= 0, got {rms_raw!r}")
+        self._process_noise_rms = float(rms_raw)
+
     def _sample_raw(self) -> int:
         """The process value now, in raw units, with the fault applied (the read hook)."""
         if self._frozen_raw is not None:
@@ -243,6 +265,8 @@ class CanopenSlave(abc.ABC):
             raise ValueError(
                 f"node {self.node_id}: the plant's source gave a non-finite value ({exact!r})"
             )
+        if self._process_noise_rms > 0.0:
+            exact += float(self._rng.normal(0.0, self._process_noise_rms))
         if self.fault.mode == "noisy" and self.fault.noise_counts_rms > 0.0:
             exact += float(self._rng.normal(0.0, self.fault.noise_counts_rms))
         raw = wrap_int32(math.floor(exact + 0.5))  # round half up

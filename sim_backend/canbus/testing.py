@@ -197,7 +197,7 @@ def _serve_child(
                         adapter.send_frame(reply)
                 for frame in segment.poll(now_s):
                     adapter.send_frame(frame)
-    except Exception:  # report to the parent instead of dying silently
+    except Exception:  # noqa: BLE001 - reported to the parent instead of dying silently
         with contextlib.suppress(OSError, BrokenPipeError):
             control.send(("error", traceback.format_exc()))
 
@@ -217,7 +217,7 @@ def serve_in_background(
         try:
             while not stop.is_set():
                 runner.pump_blocking(clock, wait_s)
-        except BaseException as error:  # surfaced in the caller's thread below
+        except BaseException as error:  # noqa: BLE001 - surfaced in the caller's thread below
             failure.append(error)
 
     thread = threading.Thread(target=serve, name="can-node-runner", daemon=True)

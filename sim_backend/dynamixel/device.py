@@ -103,6 +103,14 @@ class H54Device:
         self._registered: tuple[int, bytes] | None = None
         self._reboot_listeners: list[Callable[[], None]] = []
         self._indirect_map: list[int] | None = None  # Indirect Address 1..256, cached
+        # Items that are neither Indirect Data nor Indirect Address: read and written as plain
+        # bytes (name -> address, end, size, signed), the fast path of item/set_item.
+        self._direct_items: dict[str, tuple[int, int, int, bool]] = {
+            item.name: (item.address, item.end, item.size, item.signed)
+            for item in layout.items
+            if not (INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END)
+            and not (item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END)
+        }
 
         for item in layout.items:
             self._store(item, item.default)
@@ -159,6 +167,10 @@ class H54Device:
 
     def item(self, name: str) -> int:
         """Decoded value of an item (signed where the item is); Indirect Data follows its map."""
+        direct = self._direct_items.get(name)
+        if direct is not None:  # the firmware reads ~15 items per physics step: keep it cheap
+            address, end, _, signed = direct
+            return int.from_bytes(self._table[address:end], "little", signed=signed)
         item = self._layout[name]
         if INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END:
             return self._table[self._indirect_target(item.address)]
@@ -166,6 +178,14 @@ class H54Device:
 
     def set_item(self, name: str, value: int) -> None:
         """Firmware-side write: no access, range or limit rules (the value must fit the item)."""
+        direct = self._direct_items.get(name)
+        if direct is not None:
+            address, end, size, signed = direct
+            try:
+                self._table[address:end] = int(value).to_bytes(size, "little", signed=signed)
+                return
+            except OverflowError:
+                pass  # the general path below raises the item's own error message
         item = self._layout[name]
         if INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END:
             self._table[self._indirect_target(item.address)] = item.encode(value)[0]

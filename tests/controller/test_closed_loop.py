@@ -66,6 +66,7 @@ class SampledLoop:
         dob_cutoff_hz: float = -math.log(0.7) / (2 * math.pi * DT_S),
         velocity_cutoff_hz: float | None = None,
         servo_discretisation: str = "zoh",
+        zero_velocity_increment: bool = False,
     ) -> None:
         n = nominal.n_joints
         self.n = n
@@ -81,11 +82,12 @@ class SampledLoop:
             else math.exp(-2 * math.pi * velocity_cutoff_hz * DT_S)
         )
         kp = nominal.servo_gain_per_s
-        if servo_discretisation == "zoh":
+        if servo_discretisation == "euler":
+            self.a, self.b = 1 - kp * DT_S, kp * DT_S
+        else:  # "zoh" (with the "zoh" and "continuous-cost" designs)
             self.a = np.exp(-kp * DT_S)
             self.b = 1 - self.a
-        else:
-            self.a, self.b = 1 - kp * DT_S, kp * DT_S
+        self.zero_velocity_increment = zero_velocity_increment
         # Slices of z.
         self.sx = slice(0, 3 * n)
         self.sm = slice(3 * n, 6 * n)
@@ -103,7 +105,10 @@ class SampledLoop:
             self.beta * previous[2 * n :] + (1 - self.beta) * (theta_j - previous[n : 2 * n]) / DT_S
         )
         measured = np.concatenate([theta_m, theta_j, velocity])
-        duc = -(self.ke @ (theta_j - reference) + self.kx @ (measured - previous))
+        increment = measured - previous
+        if self.zero_velocity_increment:  # the lab's code: d dtheta_j fed as zero
+            increment[2 * n :] = 0.0
+        duc = -(self.ke @ (theta_j - reference) + self.kx @ increment)
         if self.kdist is None:
             dob = np.zeros(n)
             q = q_prev
@@ -141,9 +146,11 @@ def _radius(
     corner: tuple[float, float, float] = (1.0, 1.0, 1.0),
     method: str = "zoh",
     velocity_cutoff_hz: float | None = None,
+    zero_velocity_increment: bool = False,
+    dob_cutoff_hz: float = -math.log(0.7) / (2 * math.pi * DT_S),
 ) -> float:
     sm = single_link_sm(inertia)
-    gain = design_discrete_tracking_lqr(PAPER, sm, DT_S, LqrWeights(), method)
+    gain = design_discrete_tracking_lqr(PAPER, sm, DT_S, LqrWeights(), method)  # type: ignore[arg-type]
     loop = SampledLoop(
         PAPER,
         gain,
@@ -153,6 +160,8 @@ def _radius(
         reading=reading,
         velocity_cutoff_hz=velocity_cutoff_hz,
         servo_discretisation=method,
+        zero_velocity_increment=zero_velocity_increment,
+        dob_cutoff_hz=dob_cutoff_hz,
     )
     return loop.spectral_radius()
 
@@ -201,6 +210,23 @@ def test_accumulated_reading_at_kdist_1_fails_when_the_servo_is_30_percent_faste
     """A documented limit, not a wish: see the DOB-only analysis below for the mechanism."""
     assert _radius(inertia, kdist=1.0, reading="accumulated", corner=(1.0, 1.0, 1.3)) > 1.0
     assert _radius(inertia, kdist=1.0, reading="accumulated", corner=(1.0, 1.0, 0.7)) < 1.0
+
+
+@pytest.mark.parametrize(
+    "inertia, method, stable, unstable",
+    [
+        (0.05, "zoh", 1.20, 1.25),
+        (0.376, "zoh", 1.30, 1.36),
+        (0.376, "euler", 1.17, 1.22),  # the testbed's running configuration
+        (1.25, "euler", 2.15, 2.25),
+    ],
+)
+def test_accumulated_reading_at_kdist_1_tolerates_a_faster_servo_as_documented(
+    inertia: float, method: str, stable: float, unstable: float
+) -> None:
+    """controller/composition.py's table: the largest true Kp (times nominal) at Kdist 1."""
+    assert _radius(inertia, kdist=1.0, corner=(1.0, 1.0, stable), method=method) < 1.0
+    assert _radius(inertia, kdist=1.0, corner=(1.0, 1.0, unstable), method=method) > 1.0
 
 
 def test_accumulated_dob_alone_loses_stability_where_the_quasi_static_analysis_says() -> None:
@@ -253,12 +279,53 @@ def test_continuous_design_run_at_200_hz_is_unstable(weights: LqrWeights, inerti
     assert loop.spectral_radius() < 0.97
 
 
+@pytest.mark.parametrize(
+    "weights, radius", [(LqrWeights(), 2.989), (LqrWeights(state_increment_weight=10.0), 13.00)]
+)
+def test_continuous_gain_at_200_hz_on_the_testbed_link(weights: LqrWeights, radius: float) -> None:
+    """I = 0.376 kg m^2 (the figures docs/reproduction.md and controller/lqr.py quote)."""
+    sm = single_link_sm(0.376)
+    sampled = sample_continuous_gain(design_continuous_tracking_lqr(PAPER, sm, weights), DT_S)
+    loop = SampledLoop(PAPER, sampled, PAPER, sm, kdist=None, reading="literal")
+    assert loop.spectral_radius() == pytest.approx(radius, abs=0.005)
+
+
 def test_lab_euler_design_breaks_for_light_links_where_zoh_holds() -> None:
     """Forward Euler misplaces the gear's fast pole for I < 0.2375 kg m^2 (model.discretise)."""
     euler = [_radius(0.05, kdist=1.0, reading="literal", corner=c, method="euler") for c in CORNERS]
     zoh = [_radius(0.05, kdist=1.0, reading="literal", corner=c, method="zoh") for c in CORNERS]
     assert max(euler) > 1.0
     assert max(zoh) < 0.97
+
+
+@pytest.mark.parametrize(
+    "kdist, reading", [(None, "literal"), (0.5, "accumulated"), (1.0, "accumulated")]
+)
+def test_continuous_cost_design_runs_stably_at_its_designed_speed(
+    kdist: float | None, reading: str
+) -> None:
+    """The paper's cost sampled exactly (controller/lqr.py): designed radius 0.99242
+    (0.657 s, the continuous design's dominant mode); the loop as it runs (the goal held over
+    the tick, dx/dt read as a backward difference) keeps that mode, with or without the DOB."""
+    radius = _radius(0.376, kdist=kdist, reading=reading, method="continuous-cost")
+    assert 0.99 < radius < 0.998
+
+
+@pytest.mark.parametrize("inertia", (0.376, 1.25, 2.0))
+@pytest.mark.parametrize("kdist", (0.5, 1.0))
+def test_the_labs_zero_velocity_increment_keeps_the_running_loop_stable(
+    inertia: float, kdist: float
+) -> None:
+    """The lab's Euler design, Euler Pn^-1, 11.4 Hz Q filter, accumulated reading, and zero fed
+    for d dtheta_j (tests/controller/test_running_configuration.py pins I = 0.376)."""
+    radius = _radius(
+        inertia,
+        kdist=kdist,
+        method="euler",
+        zero_velocity_increment=True,
+        dob_cutoff_hz=11.4,
+    )
+    assert radius < 0.96  # 0.919 .. 0.952 (0.91155 at I = 0.376, Kdist 1)
 
 
 @pytest.mark.parametrize("reading", ["accumulated", "literal"])

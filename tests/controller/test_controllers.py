@@ -9,13 +9,14 @@ import pytest
 
 from controller import (
     CONTROLLER_NAMES,
+    ControllerKind,
     ControllerParams,
     ControllerUsageError,
     FlexibleJointParams,
     JointController,
-    LqrWeights,
     NoGravity,
     PendulumGravity,
+    TrackingGain,
     design_discrete_tracking_lqr,
     discretise,
     flexible_joint_state_space,
@@ -33,10 +34,30 @@ def _make(name: str, **overrides: object) -> JointController:
     )
 
 
-def test_names_are_the_papers() -> None:
-    assert CONTROLLER_NAMES == ("pid", "gc", "gc+lqr", "gc+lqr+dob")
-    for name in CONTROLLER_NAMES:
-        assert _make(name).name == name
+def test_each_kind_builds_the_block_its_name_says() -> None:
+    """pid passes the reference, gc adds ug, gc+lqr integrates the error, only +dob has a DOB.
+    Checked by behaviour, one tick each, on a link 0.1 rad below its reference."""
+    gravity = PendulumGravity(mass_kg=2.0, com_distance_m=0.35)
+    reference, motor, link = np.array([0.3]), np.array([0.2]), np.array([0.2])
+    ug = 2.0 * 9.81 * 0.35 * math.cos(0.3) / 2000.0
+    goals = {}
+    for kind in ControllerKind:
+        controller = make_controller(
+            kind, ControllerParams.paper(1), sm=SM, dt_s=DT_S, gravity=gravity
+        )
+        assert controller.name == kind.value and kind.value in CONTROLLER_NAMES
+        controller.reset(motor, link, reference, goal_in_force_rad=motor)
+        goals[kind] = controller.step(motor, link, reference)[0]
+        if kind is ControllerKind.GC_LQR_DOB:
+            controller.set_kdist(0.5)  # has a DOB
+        else:
+            with pytest.raises(ControllerUsageError, match="no disturbance observer"):
+                controller.set_kdist(0.5)
+    assert goals[ControllerKind.PID] == pytest.approx(0.3, abs=1e-15)
+    assert goals[ControllerKind.GC] == pytest.approx(0.3 + ug, abs=1e-15)
+    # gc+lqr: from the goal in force, the first increment -Ke e = +0.1 Ke (the link is below)
+    assert 0.2 < goals[ControllerKind.GC_LQR] < 0.2 + 0.1
+    assert len(CONTROLLER_NAMES) == len(ControllerKind) == 4
 
 
 def test_pid_passes_the_reference_and_gc_adds_the_gravity_input() -> None:
@@ -76,12 +97,6 @@ def test_call_protocol_is_enforced(name: str) -> None:
         controller.step(np.zeros(2), zero, zero)
 
 
-@pytest.mark.parametrize("name", ["pid", "gc", "gc+lqr"])
-def test_set_kdist_needs_a_dob(name: str) -> None:
-    with pytest.raises(ControllerUsageError, match="no disturbance observer"):
-        _make(name).set_kdist(0.5)
-
-
 def test_factory_rejects_bad_configuration() -> None:
     params = ControllerParams.paper(1)
     with pytest.raises(ValueError, match="unknown controller 'lqr'"):
@@ -106,20 +121,47 @@ def test_factory_rejects_bad_configuration() -> None:
         ControllerParams.paper(1, dob_cutoff_hz=-1.0)
 
 
+@pytest.mark.parametrize("name", CONTROLLER_NAMES)
+def test_start_is_bumpless_from_the_goal_in_force_under_gravity(name: str) -> None:
+    """The servo holds the link at the reference under gravity, short of its goal by the lag
+    tau_g / k_s (k_s = 785 N m/rad: 8.8 mrad here). The first goal is the goal in force, not the
+    measured motor angle, for every controller at rest. For the DOB the lag is a disturbance
+    it must see: q(1) = (theta_m - a theta_m) / b - u = theta_m - goal (at rest, any a, b), so
+    its first goal moves by Kdist (1 - alpha) (theta_m - goal) and nothing else."""
+    gravity = PendulumGravity(mass_kg=2.0, com_distance_m=0.35)
+    theta_d = np.array([0.4])
+    tau_g = 2.0 * 9.81 * 0.35 * math.cos(0.4)
+    ug = tau_g / 2000.0
+    lag = tau_g / 785.0
+    goal_in_force = (theta_d if name == "pid" else theta_d + ug).copy()
+    motor, link = goal_in_force - lag, theta_d.copy()
+    if name != "pid":  # the gc holds the spring's deflection with the motor
+        link = motor - ug
+    kdist = 0.8
+    params = ControllerParams.paper(1, kdist=kdist)
+    controller = make_controller(name, params, sm=SM, dt_s=DT_S, gravity=gravity)
+    controller.reset(motor, link, theta_d if name in ("pid", "gc") else link, goal_in_force)
+    reference = theta_d if name in ("pid", "gc") else link  # LQR at rest: e = 0
+    goal = controller.step(motor, link, reference)
+    expected = goal_in_force.copy()
+    if name == "gc+lqr+dob":
+        alpha = 0.7  # the default Q filter: the lab's pole
+        expected = goal_in_force + kdist * (1 - alpha) * (motor - goal_in_force)
+    np.testing.assert_allclose(goal, expected, rtol=0, atol=1e-12)
+    assert abs(goal[0] - motor[0]) > 0.5 * lag  # the old start (measured angle) was a bump
+
+
 @pytest.mark.parametrize("name", ["gc+lqr", "gc+lqr+dob"])
-def test_reset_is_bumpless(name: str) -> None:
-    """At rest on the reference the first goal is the present motor angle; off the reference
-    it moves by the first LQR increment only, -Ke e."""
+def test_off_the_reference_the_first_goal_moves_by_the_first_lqr_increment_only(
+    name: str,
+) -> None:
     gravity = PendulumGravity(mass_kg=2.0, com_distance_m=0.35)
     params = ControllerParams.paper(1)
     controller = make_controller(name, params, sm=SM, dt_s=DT_S, gravity=gravity)
     theta_d = np.array([0.4])
     ug = gravity.gravity_torque(theta_d) / 2000.0
     motor, link = theta_d + ug, theta_d.copy()
-    controller.reset(motor, link, theta_d)
-    np.testing.assert_allclose(controller.step(motor, link, theta_d), motor, atol=1e-15)
-    controller.notify_applied(motor)
-    controller.reset(motor, link, theta_d - 0.1)
+    controller.reset(motor, link, theta_d - 0.1, goal_in_force_rad=motor)
     goal = controller.step(motor, link, theta_d - 0.1)
     error_gain = controller.lqr_gain.error_gain[0, 0]  # type: ignore[attr-defined]
     np.testing.assert_allclose(goal, motor - error_gain * 0.1, atol=1e-15)
@@ -145,11 +187,12 @@ def test_dob_with_zero_kdist_is_gc_plus_lqr() -> None:
 
 
 @pytest.mark.parametrize("reading", ["accumulated", "literal"])
-def test_kdist_schedule_moves_the_goal_only_as_the_gain_change_implies(reading: str) -> None:
-    """At rest under a constant disturbance d (q = d, dx = 0) the first goal after the switch
-    moves by (Kdist' - Kdist) d in both readings: literal, the held term Kdist q steps;
-    accumulated, the rest balance duc = -Kdist d is broken by that much per tick."""
-    params = ControllerParams.paper(1, kdist=0.2, composition=reading)
+def test_kdist_step_moves_the_goal_only_as_the_gain_change_implies(reading: str) -> None:
+    """Without a ramp (kdist_ramp_s = 0): at rest under a constant disturbance d (q = d, dx = 0)
+    the first goal after the switch moves by (Kdist' - Kdist) d in both readings: literal, the
+    held term Kdist q steps; accumulated, the rest balance duc = -Kdist d is broken by that
+    much per tick."""
+    params = ControllerParams.paper(1, kdist=0.2, composition=reading, kdist_ramp_s=0.0)
     controller = make_controller("gc+lqr+dob", params, sm=SM, dt_s=DT_S, gravity=NoGravity())
     plant = discretise(flexible_joint_state_space(params.joints, SM), DT_S)
     d = 0.01
@@ -168,13 +211,19 @@ def test_kdist_schedule_moves_the_goal_only_as_the_gain_change_implies(reading: 
     assert goals[-1] - goals[-2] == pytest.approx((1.0 - 0.2) * d, rel=1e-6)
 
 
-def test_lqr_gain_can_be_swapped_between_ticks() -> None:
+def test_a_swapped_lqr_gain_acts_from_the_next_tick() -> None:
+    """A hand-made gain (0.05 per tick on e, nothing on dx): one tick with e = -0.2 from rest
+    moves the goal by exactly +0.01."""
     controller = _make("gc+lqr")
-    new_gain = design_discrete_tracking_lqr(
-        FlexibleJointParams.uniform(1), single_link_sm(1.25), DT_S, LqrWeights()
+    zero = np.zeros(1)
+    controller.reset(zero, zero, zero, goal_in_force_rad=zero)
+    controller.step(zero, zero, zero)
+    controller.notify_applied(zero)
+    controller.set_lqr_gain(  # type: ignore[attr-defined]
+        TrackingGain(np.array([[0.05]]), np.zeros((1, 3)), DT_S, float("nan"))
     )
-    controller.set_lqr_gain(new_gain)  # type: ignore[attr-defined]
-    assert controller.lqr_gain is new_gain  # type: ignore[attr-defined]
+    goal = controller.step(zero, zero, np.array([0.2]))
+    assert goal[0] == pytest.approx(0.01, abs=1e-15)
     wrong_rate = design_discrete_tracking_lqr(FlexibleJointParams.uniform(1), SM, 0.001)
     with pytest.raises(ValueError, match="designed for dt"):
         controller.set_lqr_gain(wrong_rate)  # type: ignore[attr-defined]

@@ -11,8 +11,6 @@ from controller.dob import (
     LAB_DOB_CUTOFF_HZ,
     DisturbanceObserver,
     discrete_q_response,
-    q_filter_cutoff_hz,
-    q_filter_pole,
     quantisation_noise_rms_rad,
 )
 
@@ -49,12 +47,45 @@ def _run_dob_loop(
     return np.array(d_hats), np.array(angles)
 
 
-def test_lab_filter_pole_maps_to_11_35_hz() -> None:
-    assert q_filter_pole(LAB_DOB_CUTOFF_HZ, DT_S) == pytest.approx(0.7, abs=1e-12)
-    cutoff_hz = LAB_DOB_CUTOFF_HZ
-    assert cutoff_hz == pytest.approx(-math.log(0.7) / (2 * math.pi * DT_S))
-    assert cutoff_hz == pytest.approx(11.35, abs=0.01)
-    assert q_filter_cutoff_hz(q_filter_pole(5.0, DT_S), DT_S) == pytest.approx(5.0)
+@pytest.mark.parametrize(
+    "cutoff_hz, pole",
+    [
+        (LAB_DOB_CUTOFF_HZ, 0.7),  # the lab's filter, 0.3 / (1 - 0.7 z^-1)
+        (11.4, 0.698974),  # the testbed configuration's rounded cut-off: not the lab's pole
+        (2.0, 0.939101),
+    ],
+)
+def test_filter_step_response_is_the_continuous_one_at_the_ticks(
+    cutoff_hz: float, pole: float
+) -> None:
+    """ZOH step invariance: q(k) for a held unit raw estimate is 1 - exp(-2 pi fc k dt), the
+    continuous Q(s)'s step response sampled; the pole is exp(-2 pi fc dt), written out here
+    (0.7 for 11.3533 Hz, 0.698974 for 11.4 Hz)."""
+    observer = DisturbanceObserver(np.array([KP]), cutoff_hz, DT_S, 1.0)
+    assert observer.filter_pole == pytest.approx(pole, abs=1e-6)
+    observer.reset(np.zeros(1))
+    a, b = _nominal_servo()
+    theta_m, sent = np.zeros(1), np.zeros(1)  # raw = 1 per tick: the servo lags a unit
+    for k in range(1, 30):
+        theta_m = a * theta_m + b * (sent + 1.0)  # a unit input disturbance
+        q = observer.update(theta_m, sent)[0]
+        assert q == pytest.approx(1 - math.exp(-2 * math.pi * cutoff_hz * k * DT_S), abs=1e-12)
+    lab_cutoff = LAB_DOB_CUTOFF_HZ
+    assert lab_cutoff == pytest.approx(-math.log(0.7) / (2 * math.pi * DT_S), rel=1e-15)
+    assert lab_cutoff == pytest.approx(11.3533, abs=1e-4)
+
+
+def test_the_labs_pole_can_be_given_directly_and_not_with_a_cutoff_too() -> None:
+    observer = DisturbanceObserver(np.array([KP]), None, DT_S, 1.0, filter_pole=0.7)
+    assert observer.filter_pole == 0.7
+    observer.reset(np.zeros(1))
+    a, b = _nominal_servo()
+    theta_m = a * np.zeros(1) + b * np.ones(1)
+    assert observer.update(theta_m, np.zeros(1))[0] == pytest.approx(0.3, abs=1e-12)
+    with pytest.raises(ValueError, match="not both"):
+        DisturbanceObserver(np.array([KP]), 11.4, DT_S, 1.0, filter_pole=0.7)
+    with pytest.raises(ValueError, match="pole"):
+        DisturbanceObserver(np.array([KP]), None, DT_S, 1.0, filter_pole=1.0)
 
 
 @pytest.mark.parametrize("kdist", [0.0, 0.5, 1.0, -0.5])
@@ -106,6 +137,7 @@ def test_d_to_d_hat_is_kdist_times_the_sampled_q(frequency_hz: float) -> None:
 
 
 def test_set_kdist_changes_the_output_by_the_gain_change_only() -> None:
+    """Without a ramp (kdist_ramp_ticks = 0) the next update carries the whole change."""
     observer = DisturbanceObserver(np.array([KP, KP]), LAB_DOB_CUTOFF_HZ, DT_S, [1.0, 0.2])
     a, b = _nominal_servo()
     d = np.array([0.02, -0.01])

@@ -41,22 +41,39 @@ def test_continuous_design_is_hurwitz_with_zero_riccati_residual(inertia: float)
     assert solution.gain[0, 0] == pytest.approx(np.sqrt(10.0), rel=1e-8)
 
 
+def _riccati_by_iteration(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray):
+    """P of the DARE by value iteration, P <- Q + A'PA - A'PB (R + B'PB)^-1 B'PA (independent
+    of scipy's solver)."""
+    p = q.copy()
+    for _ in range(100_000):
+        p_next = q + a.T @ p @ a - a.T @ p @ b @ np.linalg.solve(r + b.T @ p @ b, b.T @ p @ a)
+        if np.max(np.abs(p_next - p)) < 1e-13 * np.max(np.abs(p_next)):
+            return p_next
+        p = p_next
+    raise AssertionError("the Riccati iteration did not converge")
+
+
 @pytest.mark.parametrize("method", ["zoh", "euler"])
 @pytest.mark.parametrize("inertia", [0.05, 0.25, 1.25])
-def test_discrete_design_solves_its_riccati_equation(method: str, inertia: float) -> None:
+def test_discrete_design_equals_an_independent_riccati_iteration(
+    method: str, inertia: float
+) -> None:
+    """The product's gain against value iteration on the augmented model built here; plus the
+    closed form of the error gain from the DARE's (1,1) block: Ke = sqrt(Qe / (R + B'PB))."""
     sm = single_link_sm(inertia)
     gain = design_discrete_tracking_lqr(PAPER, sm, DT_S, LqrWeights(), method)  # type: ignore[arg-type]
     sampled = discretise(flexible_joint_state_space(PAPER, sm), DT_S, method)  # type: ignore[arg-type]
-    a, b = augmented_discrete(sampled.a, sampled.b, sampled.c)
-    q, r = LqrWeights().matrices(1)
-    p = discrete_lqr(a, b, q, r).riccati
-    residual = a.T @ p @ a - p - a.T @ p @ b @ np.linalg.solve(r + b.T @ p @ b, b.T @ p @ a) + q
-    assert np.max(np.abs(residual)) < 1e-8 * np.max(np.abs(p))
-    k = gain.stacked
-    np.testing.assert_allclose(k, np.linalg.solve(r + b.T @ p @ b, b.T @ p @ a), rtol=1e-9)
-    radius = np.max(np.abs(np.linalg.eigvals(a - b @ k)))
+    c = np.array([[0.0, 1.0, 0.0]])
+    a = np.block([[np.eye(1), c @ sampled.a], [np.zeros((3, 1)), sampled.a]])
+    b = np.vstack([c @ sampled.b, sampled.b])
+    q, r = np.diag([10.0, 1.0, 1.0, 1.0]), np.eye(1)
+    p = _riccati_by_iteration(a, b, q, r)
+    expected = np.linalg.solve(r + b.T @ p @ b, b.T @ p @ a)
+    np.testing.assert_allclose(gain.stacked, expected, rtol=1e-7, atol=1e-12)
+    assert gain.error_gain[0, 0] == pytest.approx(np.sqrt(10.0 / (1.0 + b.T @ p @ b))[0, 0])
+    radius = np.max(np.abs(np.linalg.eigvals(a - b @ expected)))
     assert radius < 1.0
-    assert gain.spectral_radius == pytest.approx(radius)
+    assert gain.spectral_radius == pytest.approx(radius, rel=1e-7)
 
 
 def test_augmented_discrete_model_propagates_error_and_increments() -> None:

@@ -56,7 +56,7 @@ class Rig:
         )
         self.description = f"virtual {channel}"
 
-    def serve_while(self, action) -> None:  # noqa: ANN001 - a zero-argument callable
+    def serve_while(self, action) -> None:
         with serve_in_background(self.runner, lambda: self.now_s):
             action()
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.joint_bus import JointSample
 from hil.cli.common import parse_injections
 from hil.config import load_config
 from tests.support.rig import PERIOD_S, assert_log_complete, run_in_process
@@ -102,3 +103,26 @@ def test_every_injected_fault_fired(tmp_path: Path) -> None:
     bus = in_process_bus(CONFIG, CONTACT, faults)
     run_in_process(CONFIG, CONTACT, "pid", tmp_path, duration_s=0.8, bus=bus)
     assert bus.testbed is not None and bus.testbed.schedule.fired == [1, 1]
+
+
+def test_an_actuator_fault_with_torque_still_on_stops_the_run(tmp_path: Path) -> None:
+    """The emulated H54 reports overheating (not in its Shutdown mask: it keeps torque on) in
+    the middle of a run: the loop's supervisor turns torque off itself on that tick."""
+    from hil.experiments import IMPACT
+    from hil.wiring.in_process import in_process_bus
+
+    bus = in_process_bus(CONFIG, IMPACT)
+    real_read = bus.read
+
+    def read_and_overheat() -> JointSample:
+        if bus.reads == 300:
+            bus.testbed.robot.devices[0].raise_hardware_error(0x04)  # OVERHEATING
+        return real_read()
+
+    bus.read = read_and_overheat  # type: ignore[method-assign]
+    result, run = run_in_process(CONFIG, IMPACT, "gc+lqr+dob", tmp_path, duration_s=2.0, bus=bus)
+    event = run.first_trip()
+    assert event["cause"] == "hardware_error" and event["tick"] == 300
+    assert "torque is on" in event["message"]
+    assert run.columns["torque_enabled"][300] == 1  # the device had not turned itself off
+    assert not bus.testbed.robot.devices[0].torque_enabled  # the loop did

@@ -6,6 +6,7 @@ import fcntl
 import io
 import os
 import pty
+import select
 import struct
 import termios
 
@@ -32,7 +33,9 @@ def test_on_a_terminal_the_bar_shows_progress_and_the_time_left() -> None:
                 bar.update_to(2.0, "impact: pid")
                 bar.write("a line above the bar")
             terminal.flush()
-        shown = os.read(leader, 65536).decode()
+        shown = ""
+        while select.select([leader], [], [], 0.5)[0]:  # everything the terminal got
+            shown += os.read(leader, 65536).decode()
     finally:
         os.close(leader)
         os.close(follower)

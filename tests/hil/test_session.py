@@ -51,7 +51,7 @@ def test_a_configured_literal_reading_is_named_in_the_label_and_the_directory(
 
 @pytest.mark.slow
 def test_the_comparison_runs_the_plan_and_checks_every_relation(tmp_path: Path, capsys) -> None:
-    outcome = run_comparison(_session(tmp_path, plots=False))
+    outcome = run_comparison(_session(tmp_path, plots=False), long_runs=False)
     assert outcome.incomplete is None
     runs = sorted(p.name for p in outcome.root.iterdir() if p.is_dir())
     assert len(runs) == 12 and "contact-gc-lqr-dob-k1-literal" in runs

@@ -77,7 +77,7 @@ def _tick(supervisor: Supervisor, k: int, sample: JointSample, goal: float | Non
 
 
 def test_goals_are_clipped_to_the_joint_limits_and_rate_limited() -> None:
-    supervisor = _supervisor()
+    supervisor = _supervisor(goal_saturation_window_ticks=5000)  # no goal_saturated here
     step = CONFIG.safety.max_goal_rate_rad_s * PERIOD_S
     goals = [float(_tick(supervisor, k, _sample(), 5.0)[0]) for k in range(1000)]
     assert np.allclose(np.diff([0.0, *goals]), np.minimum(step, np.diff([0.0, *goals])))
@@ -346,3 +346,38 @@ def test_homing_ramps_the_reference_no_faster_than_its_rate() -> None:
     assert plan.ticks(PERIOD_S) == math.ceil(plan.duration_s / PERIOD_S)
     with pytest.raises(ValueError, match="every link angle must be known"):
         plan_homing(np.array([math.nan]), 0.0)
+
+
+def test_a_fault_the_actuator_reports_with_torque_still_on_trips_too() -> None:
+    """Overheating is outside the H54's default Shutdown mask: the device keeps its torque on and
+    only reports the bit. The supervisor must act on the report, not wait for torque off."""
+    supervisor = _supervisor()
+    _tick(supervisor, 0, _sample(), 0.0)
+    goal = _tick(supervisor, 1, _sample(hardware_error=HardwareError.OVERHEATING, torque=True), 0.0)
+    (event,) = supervisor.events
+    assert (event.tick, event.cause, event.action) == (1, "hardware_error", "torque_off")
+    assert "OVERHEATING" in event.message and "torque is on" in event.message
+    assert goal is None and supervisor.state == SafeState.TORQUE_OFF
+
+
+def test_goals_clipped_on_most_ticks_are_a_safety_stop_not_a_completed_run() -> None:
+    window = CONFIG.safety.goal_saturation_window_ticks
+    supervisor = _supervisor()
+    for k in range(2 * window):
+        _tick(supervisor, k, _sample(0.79, 0.79), 5.0)  # far beyond max_angle_rad 0.8
+        if supervisor.events:
+            break
+    (event,) = supervisor.events
+    assert event.cause == "goal_saturated" and event.action == "hold"
+    # half of the window, counted from the first clipped goal (the rate limit reaches the limit
+    # on tick 0: 0.79 + 0.01)
+    assert event.tick == window // 2 - 1
+
+
+def test_a_kdist_beyond_the_analysed_range_is_a_safety_stop_at_the_start() -> None:
+    supervisor = _supervisor()
+    supervisor.check_settings(1.0)
+    assert supervisor.events == []
+    supervisor.check_settings(1.5)
+    (event,) = supervisor.events
+    assert event.cause == "gain_out_of_range" and supervisor.state == SafeState.HOLD

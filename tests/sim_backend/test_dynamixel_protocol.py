@@ -60,19 +60,19 @@ class FakePort:
         self.written = b""
         self.incoming = bytearray(incoming)
 
-    def clearPort(self) -> None:  # noqa: N802 - SDK's name
+    def clearPort(self) -> None:
         pass
 
-    def writePort(self, packet: list[int]) -> int:  # noqa: N802
+    def writePort(self, packet: list[int]) -> int:
         self.written += bytes(packet)
         return len(packet)
 
-    def readPort(self, length: int) -> list[int]:  # noqa: N802
+    def readPort(self, length: int) -> list[int]:
         chunk = bytes(self.incoming[:length])
         del self.incoming[:length]
         return list(chunk)
 
-    def isPacketTimeout(self) -> bool:  # noqa: N802
+    def isPacketTimeout(self) -> bool:
         return True
 
 

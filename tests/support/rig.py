@@ -127,10 +127,6 @@ def config_with(config: Config | None = None, **safety: Any) -> Config:
     return config.changed("safety", **safety)
 
 
-def choice(controller: str, kdist: float = 1.0) -> ControllerChoice:
-    return ControllerChoice(controller, kdist)
-
-
 def run_in_process(
     config: Config,
     experiment: Experiment | str,
@@ -142,14 +138,20 @@ def run_in_process(
     faults: tuple[FaultEvent, ...] = (),
     seed: int | None = None,
     bus: InProcessJointBus | None = None,
+    choice: ControllerChoice | None = None,
     **request: Any,
 ) -> tuple[RunResult, Run]:
-    """The loop of `hil run` (lock-step) on the in-process joint bus with the experiment's world."""
+    """The loop of `hil run` (lock-step) on the in-process joint bus with the experiment's world;
+    `choice` (a reading of (25), say) instead of controller + kdist."""
     if isinstance(experiment, str):
         experiment = get_experiment(experiment)
     bus = bus or in_process_bus(config, experiment, faults, seed=seed)
     run_request = RunRequest(
-        experiment, choice(controller, kdist), out_dir, duration_s=duration_s, **request
+        experiment,
+        choice or ControllerChoice(controller, kdist),
+        out_dir,
+        duration_s=duration_s,
+        **request,
     )
     clock = LockstepClock(config.loop.period_s)
     result = run_experiment(config, run_request, bus, clock, {"test": True})
@@ -185,7 +187,7 @@ def run_on(
     connection = Connection.from_endpoints(emulator.endpoints, config)
     bus = make_bus(config, connection, clock=clock.now)
     run_request = RunRequest(
-        experiment, choice(controller, kdist), out_dir, duration_s=duration_s, **request
+        experiment, ControllerChoice(controller, kdist), out_dir, duration_s=duration_s, **request
     )
     result = run_experiment(config, run_request, bus, clock, {"test": True})
     return result, load_run(out_dir)

@@ -1,0 +1,185 @@
+"""The emulated hardware of a spec, before any bus is attached: devices, sensors, physics.
+
+Two robots, one face (`EmulatedHardware`), which the bus server (sim_backend/server.py) and the
+in-process testbed (sim_backend/direct.py) both drive:
+
+    testbed    one MuJoCo plant per joint behind its H54 firmware (sim_backend/testbed.py),
+               a CiA 406 link encoder per joint, the obstacle's CiA 404 force sensor
+    dyros-jet  the humanoid's 12 leg joints on one MuJoCo robot behind 12 H54 firmwares
+               (sim_backend/humanoid/), a link encoder per joint, a six-axis force/torque
+               sensor per foot
+
+Every device has the same control table (`H54Device`), and every sensor is a CAN node
+(`CanopenSlave`), so the buses and the drivers see the same thing whichever robot it is.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import numpy as np
+
+from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
+from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
+from sim_backend.dynamixel import BAUD_RATE_BPS, H54Device
+from sim_backend.plant import ObstacleParams, TestbedPlantParams
+from sim_backend.spec import EmulatorSpec
+from sim_backend.testbed import EmulatedJoint, Mounting, VirtualTestbed
+
+
+class EmulatedHardware(Protocol):
+    """What the buses serve and the physics clock they share (see the module docstring)."""
+
+    devices: list[H54Device]  # one per joint, in the spec's joint order
+    mountings: list[Mounting]  # how each actuator is mounted (the host's offset/direction)
+    encoders: list[LinkEncoderNode]  # one per joint
+    force_sensor: ForceSensorNode | None
+    ft_sensors: list[ForceTorqueSensorNode]
+
+    @property
+    def physics_timestep_s(self) -> float: ...
+
+    @property
+    def time_s(self) -> float: ...
+
+    @property
+    def scenario_time_s(self) -> float | None: ...
+
+    def start_scenario(self) -> None: ...
+
+    def advance(self, duration_s: float) -> int: ...
+
+
+def sensor_nodes(hardware: EmulatedHardware) -> list[object]:
+    """Every CAN node of the hardware (encoders, force sensor, force/torque sensors)."""
+    nodes: list[object] = list(hardware.encoders)
+    if hardware.force_sensor is not None:
+        nodes.append(hardware.force_sensor)
+    nodes.extend(hardware.ft_sensors)
+    return nodes
+
+
+def baud_index(baudrate: int) -> int:
+    return next(index for index, bps in BAUD_RATE_BPS.items() if bps == baudrate)
+
+
+def rng(seed: int, stream: int) -> np.random.Generator:
+    return np.random.default_rng([seed, stream])
+
+
+def link_encoders(spec: EmulatorSpec, link_angle: Callable[[int], float]) -> list[LinkEncoderNode]:
+    """A CiA 406 link encoder per joint, reading `link_angle(joint)`, mounted as the spec says."""
+    nodes = []
+    for index, joint in enumerate(spec.joints):
+        # The node multiplies by its direction; the driver computes direction * (reading -
+        # offset): the source is the encoder's own angle, before the node's direction.
+        def source(
+            index: int = index, direction: int = joint.encoder_direction,
+            offset: float = joint.encoder_offset_rad,
+        ) -> float:  # fmt: skip
+            return link_angle(index) + direction * offset
+
+        nodes.append(
+            LinkEncoderNode(
+                joint.encoder_node_id,
+                source,
+                counts_per_rev=joint.encoder_counts_per_rev,
+                direction=joint.encoder_direction,
+                heartbeat_ms=spec.heartbeat_ms,
+                seed=spec.seed * 7919 + index,
+                noise_counts_rms=spec.sensor_noise.link_encoder_counts_rms,
+            )
+        )
+    return nodes
+
+
+def with_obstacle(
+    params: TestbedPlantParams, contact_angle_rad: float | None
+) -> TestbedPlantParams:
+    """The block is part of an experiment's world: present only where the scenario puts it."""
+    if contact_angle_rad is None:
+        return dataclasses.replace(params, obstacle=None)
+    approach = 1 if contact_angle_rad > params.initial_link_angle_rad else -1
+    obstacle = ObstacleParams(contact_angle_rad=contact_angle_rad, approach=approach)
+    return dataclasses.replace(params, obstacle=obstacle)
+
+
+class EmulatedTestbed:
+    """The 1-DoF testbed (or n copies of it): a plant per joint behind its H54 firmware."""
+
+    def __init__(
+        self,
+        devices: list[H54Device],
+        joints: list[EmulatedJoint],
+        encoders: list[LinkEncoderNode],
+        force_sensor: ForceSensorNode | None,
+    ) -> None:
+        self.devices = devices
+        self.joints = joints
+        self.mountings = [joint.motor_mounting for joint in joints]
+        self.encoders = encoders
+        self.force_sensor = force_sensor
+        self.ft_sensors: list[ForceTorqueSensorNode] = []
+        self.testbed = VirtualTestbed(joints)
+
+    @classmethod
+    def build(cls, spec: EmulatorSpec) -> EmulatedTestbed:
+        plant_params = with_obstacle(spec.plant, spec.scenario.obstacle_contact_angle_rad)
+        devices: list[H54Device] = []
+        joints: list[EmulatedJoint] = []
+        for index, joint_spec in enumerate(spec.joints):
+            device = H54Device(
+                joint_spec.dxl_id,
+                baud_index=baud_index(spec.baudrate),
+                reboot_time_s=spec.reboot_time_s,
+            )
+            joint = EmulatedJoint(
+                device,
+                plant_params,
+                spec.servo,
+                motor_mounting=Mounting(joint_spec.motor_direction, joint_spec.motor_offset_rad),
+                rng=rng(spec.seed, 1000 + index),
+            )
+            joint.pushes = [p for p in spec.scenario.pushes if p.joint == index]
+            device.add_reboot_listener(joint.on_reboot)
+            devices.append(device)
+            joints.append(joint)
+        encoders = link_encoders(spec, lambda index: joints[index].plant.link_angle_rad)
+        hardware = cls(devices, joints, encoders, None)
+        if spec.force_sensor_node_id:
+            hardware.force_sensor = ForceSensorNode(
+                spec.force_sensor_node_id,
+                hardware.contact_force_n,
+                heartbeat_ms=spec.heartbeat_ms,
+                seed=spec.seed * 7919 + 999,
+                noise_n_rms=spec.sensor_noise.force_sensor_n_rms,
+            )
+        return hardware
+
+    def contact_force_n(self) -> float:
+        return sum(j.plant.contact_force_n() for j in self.joints)
+
+    @property
+    def physics_timestep_s(self) -> float:
+        return self.testbed.physics_timestep_s
+
+    @property
+    def time_s(self) -> float:
+        return self.testbed.time_s
+
+    @property
+    def scenario_time_s(self) -> float | None:
+        return self.testbed.scenario_time_s
+
+    def start_scenario(self) -> None:
+        self.testbed.start_scenario()
+
+    def advance(self, duration_s: float) -> int:
+        return self.testbed.advance(duration_s)
+
+
+def check_joint_count(name: str, joints: Sequence[object], expected: int) -> None:
+    if len(joints) != expected:
+        raise ValueError(f"the {name} has {expected} joints; the spec gives {len(joints)}")

@@ -1,0 +1,93 @@
+"""The emulated DYROS-JET legs as the buses see them (`EmulatedHardware`): 12 H54 devices, a
+link encoder per joint and a six-axis force/torque sensor per foot, on the MuJoCo robot."""
+
+from __future__ import annotations
+
+from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
+from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
+from sim_backend.dynamixel import H54Device
+from sim_backend.hardware import baud_index, check_joint_count, link_encoders, rng
+from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams, leg_eeprom_overrides
+from sim_backend.humanoid.robot import EmulatedRobot, PelvisPush
+from sim_backend.spec import EmulatorSpec
+from sim_backend.testbed import Mounting
+
+
+class EmulatedHumanoid:
+    """See the module docstring; built from an `EmulatorSpec` whose robot is "dyros-jet"."""
+
+    def __init__(
+        self,
+        robot: EmulatedRobot,
+        devices: list[H54Device],
+        encoders: list[LinkEncoderNode],
+        ft_sensors: list[ForceTorqueSensorNode],
+    ) -> None:
+        self.robot = robot
+        self.devices = devices
+        self.mountings = list(robot.mountings)
+        self.encoders = encoders
+        self.force_sensor: ForceSensorNode | None = None
+        self.ft_sensors = ft_sensors
+
+    @classmethod
+    def build(cls, spec: EmulatorSpec) -> EmulatedHumanoid:
+        humanoid = spec.humanoid
+        if humanoid is None:
+            raise ValueError("a dyros-jet emulator needs its HumanoidSpec")
+        check_joint_count("DYROS-JET's legs", spec.joints, N_LEG_JOINTS)
+        devices = [
+            H54Device(
+                joint.dxl_id,
+                baud_index=baud_index(spec.baudrate),
+                reboot_time_s=spec.reboot_time_s,
+                eeprom_overrides=leg_eeprom_overrides(),
+            )
+            for joint in spec.joints
+        ]
+        truth = RobotTruthParams(**{"servo": spec.servo, **dict(humanoid.truth)})
+        robot = EmulatedRobot(
+            humanoid.urdf_text,
+            devices,
+            truth=truth,
+            initial_leg_angles_rad=humanoid.initial_leg_angles_rad,
+            support_feet=humanoid.support_feet,
+            motor_mountings=[
+                Mounting(joint.motor_direction, joint.motor_offset_rad) for joint in spec.joints
+            ],
+            rng=rng(spec.seed, 1000),
+        )
+        robot.pushes = [
+            PelvisPush(p.start_s, p.duration_s, tuple(p.force_n))
+            for p in spec.scenario.pelvis_pushes
+        ]
+        encoders = link_encoders(spec, robot.link_angle_rad)
+        ft_sensors = [
+            ForceTorqueSensorNode(
+                node_id,
+                lambda side=side: robot.foot_wrench(side),
+                heartbeat_ms=spec.heartbeat_ms,
+                seed=spec.seed * 7919 + 500 + side,
+            )
+            for side, node_id in enumerate(humanoid.ft_sensor_node_ids)
+            if node_id
+        ]
+        return cls(robot, devices, encoders, ft_sensors)
+
+    @property
+    def physics_timestep_s(self) -> float:
+        return self.robot.physics_timestep_s
+
+    @property
+    def time_s(self) -> float:
+        return self.robot.time_s
+
+    @property
+    def scenario_time_s(self) -> float | None:
+        return self.robot.scenario_time_s
+
+    def start_scenario(self) -> None:
+        self.robot.start_scenario()
+
+    def advance(self, duration_s: float) -> int:
+        return self.robot.advance(duration_s)

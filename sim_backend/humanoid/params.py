@@ -1,0 +1,182 @@
+"""The emulated DYROS-JET's physical parameters: the TRUTH of a run (the controller's model is
+nominal and separate; a run can make them differ to test robustness).
+
+Every default is the published robot (the URDF's figures) with the paper's gear (K = 2000 N m/rad,
+D = 100 N m s/rad, Kim et al., Sec. IV-A: the humanoid uses the testbed's actuator modules) and
+the testbed's H54 motor side (sim_backend.plant.TestbedPlantParams: reflected rotor inertia
+0.25 kg m^2, gearbox friction 3.95 N m Coulomb + 1.14 N m s/rad viscous, assumptions documented
+there). Per-joint figures are 12-tuples in the lab's leg order (L hip yaw, roll, pitch, knee,
+ankle pitch, ankle roll, then R); a scalar means the same for all 12.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from sim_backend.servo import H54ServoParams
+
+LEFT_LEG_JOINT_NAMES: tuple[str, ...] = (
+    "L_HipYaw",
+    "L_HipRoll",
+    "L_HipPitch",
+    "L_KneePitch",
+    "L_AnklePitch",
+    "L_AnkleRoll",
+)
+LEG_JOINT_NAMES: tuple[str, ...] = LEFT_LEG_JOINT_NAMES + tuple(
+    "R" + name[1:] for name in LEFT_LEG_JOINT_NAMES
+)
+N_LEG_JOINTS = len(LEG_JOINT_NAMES)
+FOOT_LINK_NAMES: tuple[str, str] = ("L_AnkleRoll_Link", "R_AnkleRoll_Link")
+PELVIS_LINK_NAME = "base_link"
+KNEE_INDICES = (3, 9)
+
+# The lab's "Init Walking" upper body (psh117/dyros_jet, dyros_jet_gui task_window.cpp,
+# on_button_walk_init_wholebody_clicked), rad: the waist and arms are welded at these angles.
+# The controller's LegModel locks the same joints at the same angles by default.
+LAB_WALK_INIT_UPPER_BODY_RAD: Mapping[str, float] = {
+    "WaistPitch": 0.0,
+    "WaistYaw": 0.0,
+    "L_ShoulderPitch": 0.6981317008,
+    "L_ShoulderRoll": -1.6580627893,
+    "L_ShoulderYaw": -1.3962634016,
+    "L_ElbowRoll": -1.9198621771,
+    "L_WristYaw": 0.0,
+    "L_WristRoll": -1.2217304764,
+    "L_HandYaw": -0.1745329252,
+    "R_ShoulderPitch": -0.6981317008,
+    "R_ShoulderRoll": 1.6580627893,
+    "R_ShoulderYaw": 1.3962634016,
+    "R_ElbowRoll": 1.9198621771,
+    "R_WristYaw": 0.0,
+    "R_WristRoll": 1.2217304764,
+    "R_HandYaw": 0.17453292519,
+}
+
+# The lab's knee servo gain: Kp = 18 1/s (walking_controller.cpp, motor_k_mat(3,3) and (9,9)).
+# Position P Gain (594) scales the emulated firmware's Kpp linearly, register 32 = 10 1/s
+# (sim_backend.servo), so the knees are set to 58 -> 18.1 1/s; the other joints keep 32.
+LAB_KNEE_POSITION_GAIN_REGISTER = 58
+
+
+# Torque Limit (30, EEPROM) of the leg actuators. The e-Manual's initial value 620 (x 16.11328 mA
+# = 10.0 A, x 4.81 N m/A = 48 N m at the output) does not hold DYROS-JET on one leg with the
+# published figures: in single support the stance hip roll and knee carry ~62 N m (more while the
+# servo lags), the cap clips them and the overload protection (90 % of the cap held for 1.5 s)
+# shuts them down (tests/sim_backend/test_humanoid_robot.py shows it). The lab's configuration is
+# not published. ASSUMPTION: the emulated robot's legs are configured to 1240 (20.0 A, 96 N m),
+# within the item's range 0..1860; a host configuration for DYROS-JET should write the same.
+DYROS_JET_LEG_TORQUE_LIMIT_REGISTER = 1240
+
+
+def leg_eeprom_overrides() -> dict[str, int]:
+    """EEPROM items of each emulated leg actuator as the DYROS-JET emulator configures them."""
+    return {"Torque Limit": DYROS_JET_LEG_TORQUE_LIMIT_REGISTER}
+
+
+def _per_joint(value: float | tuple[float, ...], name: str) -> tuple[float, ...]:
+    values = (float(value),) * N_LEG_JOINTS if isinstance(value, int | float) else tuple(value)
+    if len(values) != N_LEG_JOINTS or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{name} needs one finite value or {N_LEG_JOINTS} finite values")
+    return values
+
+
+def lab_position_gain_registers() -> tuple[int, ...]:
+    """Position P Gain (594) per leg joint: 32 (10 1/s) except the knees (58, ~18 1/s)."""
+    return tuple(
+        LAB_KNEE_POSITION_GAIN_REGISTER if i in KNEE_INDICES else 32 for i in range(N_LEG_JOINTS)
+    )
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """Sole-ground contact: Coulomb friction and MuJoCo's solref (time constant, damping ratio).
+
+    friction 1.0: rubber soles on a floor (the lab's MuJoCo model uses 1.0). solref 20 ms, 1:
+    MuJoCo's default soft contact, 20 x the 1 ms step (a stable choice for `implicitfast`).
+    """
+
+    friction: float = 1.0
+    time_constant_s: float = 0.02
+    damping_ratio: float = 1.0
+
+
+@dataclass(frozen=True)
+class RobotTruthParams:
+    """The emulated robot's physics (see the module docstring). All overridable for robustness.
+
+    mass_scale: every link's mass and inertia times this (1 = published).
+    com_offset_link / com_offset_m: a shift of one link's centre of mass (default the torso,
+        14.1 kg of the 50 kg), e.g. a payload the controller does not know of.
+    upper_body_angles_rad: where the waist and arm joints are welded.
+    servo: the H54 firmware's SI figures (one for all joints, or 12).
+    position_gain_registers: Position P Gain (594) per joint at power-on (the lab's knee
+        Kp = 18: see LAB_KNEE_POSITION_GAIN_REGISTER). A REBOOT returns a device's RAM to the
+        e-Manual default (32): the host re-writes it, as on the real robot.
+    physics_timestep_s: MuJoCo step (implicitfast); the firmware runs once per step.
+    """
+
+    gear_stiffness_nm_per_rad: float | tuple[float, ...] = 2000.0
+    gear_damping_nms_per_rad: float | tuple[float, ...] = 100.0
+    motor_reflected_inertia_kg_m2: float | tuple[float, ...] = 0.25
+    gearbox_coulomb_friction_nm: float | tuple[float, ...] = 3.95
+    gearbox_viscous_friction_nms_per_rad: float | tuple[float, ...] = 1.14
+    mass_scale: float = 1.0
+    com_offset_link: str = "WaistYaw_Link"
+    com_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    upper_body_angles_rad: Mapping[str, float] = field(
+        default_factory=lambda: dict(LAB_WALK_INIT_UPPER_BODY_RAD)
+    )
+    servo: H54ServoParams | tuple[H54ServoParams, ...] = field(default_factory=H54ServoParams)
+    position_gain_registers: tuple[int, ...] = field(default_factory=lab_position_gain_registers)
+    contact: ContactParams = field(default_factory=ContactParams)
+    physics_timestep_s: float = 0.001
+    gravity_m_s2: float = 9.81
+
+    def __post_init__(self) -> None:
+        for name in (
+            "gear_stiffness_nm_per_rad",
+            "gear_damping_nms_per_rad",
+            "motor_reflected_inertia_kg_m2",
+            "gearbox_coulomb_friction_nm",
+            "gearbox_viscous_friction_nms_per_rad",
+        ):
+            values = _per_joint(getattr(self, name), name)
+            if any(v < 0 for v in values) or (
+                name in ("gear_stiffness_nm_per_rad", "motor_reflected_inertia_kg_m2")
+                and any(v <= 0 for v in values)
+            ):
+                raise ValueError(f"{name} must be positive, got {values}")
+            object.__setattr__(self, name, values)
+        servos = (
+            (self.servo,) * N_LEG_JOINTS
+            if isinstance(self.servo, H54ServoParams)
+            else (tuple(self.servo))
+        )
+        if len(servos) != N_LEG_JOINTS:
+            raise ValueError(f"servo needs one H54ServoParams or {N_LEG_JOINTS}")
+        object.__setattr__(self, "servo", servos)
+        if len(self.position_gain_registers) != N_LEG_JOINTS:
+            raise ValueError(f"position_gain_registers needs {N_LEG_JOINTS} entries")
+        if not (math.isfinite(self.mass_scale) and self.mass_scale > 0):
+            raise ValueError(f"mass_scale must be > 0, got {self.mass_scale}")
+        if not (math.isfinite(self.physics_timestep_s) and 0 < self.physics_timestep_s <= 0.002):
+            raise ValueError(
+                f"physics_timestep_s must be in (0, 2 ms] (implicitfast, measured stable), got "
+                f"{self.physics_timestep_s}"
+            )
+        if len(self.com_offset_m) != 3:
+            raise ValueError("com_offset_m needs 3 entries")
+
+    def servo_params(self, joint: int) -> H54ServoParams:
+        servos = self.servo
+        assert isinstance(servos, tuple)
+        return servos[joint]
+
+    def per_joint(self, name: str) -> tuple[float, ...]:
+        """A per-joint figure as a 12-tuple (after validation every such field is one)."""
+        value = getattr(self, name)
+        assert isinstance(value, tuple)
+        return value

@@ -1,0 +1,294 @@
+"""The emulated DYROS-JET's physics: MuJoCo with 12 flexible leg joints (see mjcf.py).
+
+A per-joint API like the testbed's `TestbedPlant`, for 12 joints in the lab's leg order, plus
+what a humanoid adds: the feet's force/torque sensors, the pelvis pose, the centre of mass and
+a push on the pelvis. It knows nothing of buses or firmware (robot.py puts the H54 firmware in
+front of it).
+
+Sign conventions: every joint angle in its URDF axis convention; link angle = motor angle +
+gear deflection; the gear torque tau_j = K (theta_m - theta_j) + D (dtheta_m - dtheta_j) of the
+paper's (1) is what the spring carries (MuJoCo's passive force on the deflection coordinate is
+-tau_j). A foot wrench is the ground's force and moment ON THE ROBOT, in the foot sensor's frame
+(the *_AnkleRoll_Link frame, at the ankle axis), the moment about the sensor's origin: standing
+still, the vertical forces are positive and sum to the robot's weight.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from sim_backend.humanoid.description import parse_urdf
+from sim_backend.humanoid.mjcf import FT_SUFFIX, MOTOR_SUFFIX, build_mjcf
+from sim_backend.humanoid.params import (
+    FOOT_LINK_NAMES,
+    LEG_JOINT_NAMES,
+    N_LEG_JOINTS,
+    PELVIS_LINK_NAME,
+    RobotTruthParams,
+)
+
+
+class HumanoidPlant:
+    """MuJoCo model and state of the emulated robot; see the module docstring."""
+
+    def __init__(
+        self,
+        urdf_text: str,
+        params: RobotTruthParams | None = None,
+        *,
+        velocity_gains_nms_per_rad: Sequence[float] | None = None,
+    ) -> None:
+        self.params = params or RobotTruthParams()
+        self.description = parse_urdf(urdf_text)
+        self.mjcf = build_mjcf(
+            self.description, self.params, velocity_gains_nms_per_rad=velocity_gains_nms_per_rad
+        )
+        model = mujoco.MjModel.from_xml_string(self.mjcf)
+        self.model = model
+        self.data = mujoco.MjData(model)
+
+        def joint_id(name: str) -> int:
+            return model.joint(name).id
+
+        motors = [joint_id(name + MOTOR_SUFFIX) for name in LEG_JOINT_NAMES]
+        gears = [joint_id(name) for name in LEG_JOINT_NAMES]
+        self._motor_qpos = np.array([model.jnt_qposadr[j] for j in motors])
+        self._motor_dof = np.array([model.jnt_dofadr[j] for j in motors])
+        self._gear_qpos = np.array([model.jnt_qposadr[j] for j in gears])
+        self._gear_dof = np.array([model.jnt_dofadr[j] for j in gears])
+        self._actuator = np.array(
+            [model.actuator(name + MOTOR_SUFFIX).id for name in LEG_JOINT_NAMES]
+        )
+        self._stiffness = np.array(self.params.per_joint("gear_stiffness_nm_per_rad"))
+        self._damping = np.array(self.params.per_joint("gear_damping_nms_per_rad"))
+        self._pelvis_body = model.body(PELVIS_LINK_NAME).id
+        self._ft_body = [model.body(name + FT_SUFFIX).id for name in FOOT_LINK_NAMES]
+        self._ft_site = [model.site(name + FT_SUFFIX).id for name in FOOT_LINK_NAMES]
+        self._sole_geoms = [
+            [g for g in range(model.ngeom) if model.geom_bodyid[g] == body]
+            for body in self._ft_body
+        ]
+        self._force_adr = [
+            model.sensor_adr[model.sensor(name + FT_SUFFIX + "_force").id]
+            for name in FOOT_LINK_NAMES
+        ]
+        self._torque_adr = [
+            model.sensor_adr[model.sensor(name + FT_SUFFIX + "_torque").id]
+            for name in FOOT_LINK_NAMES
+        ]
+        self._brake_damping = np.zeros(N_LEG_JOINTS)
+        self._pelvis_force = np.zeros(3)
+        mujoco.mj_forward(model, self.data)
+
+    # --- state (copies, lab leg order) --------------------------------------------------------
+    @property
+    def physics_timestep_s(self) -> float:
+        return float(self.model.opt.timestep)
+
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def motor_angle_rad(self) -> np.ndarray:
+        return self.data.qpos[self._motor_qpos].copy()
+
+    @property
+    def motor_velocity_rad_s(self) -> np.ndarray:
+        return self.data.qvel[self._motor_dof].copy()
+
+    @property
+    def deflection_rad(self) -> np.ndarray:
+        """Link angle minus motor angle (the gear hinge's coordinate)."""
+        return self.data.qpos[self._gear_qpos].copy()
+
+    @property
+    def link_angle_rad(self) -> np.ndarray:
+        """What the external link encoders measure: motor angle plus deflection."""
+        return self.data.qpos[self._motor_qpos] + self.data.qpos[self._gear_qpos]
+
+    @property
+    def link_velocity_rad_s(self) -> np.ndarray:
+        return self.data.qvel[self._motor_dof] + self.data.qvel[self._gear_dof]
+
+    @property
+    def motor_torque_nm(self) -> np.ndarray:
+        """The servo's output torque this step (after its torque cap)."""
+        return self.data.actuator_force[self._actuator].copy()
+
+    @property
+    def gear_torque_nm(self) -> np.ndarray:
+        """(1): tau_j = K (theta_m - theta_j) + D (dtheta_m - dtheta_j), per joint [N m]."""
+        return -(
+            self._stiffness * self.data.qpos[self._gear_qpos]
+            + self._damping * self.data.qvel[self._gear_dof]
+        )
+
+    def motor_state(self, joint: int) -> tuple[float, float]:
+        """(motor angle, motor velocity) of one joint, for the firmware's per-step loop."""
+        return (
+            float(self.data.qpos[self._motor_qpos[joint]]),
+            float(self.data.qvel[self._motor_dof[joint]]),
+        )
+
+    def motor_states(self) -> tuple[list[float], list[float]]:
+        """(motor angles, motor velocities) of the 12 joints as lists (the firmware's input)."""
+        return (
+            self.data.qpos[self._motor_qpos].tolist(),
+            self.data.qvel[self._motor_dof].tolist(),
+        )
+
+    def motor_torques(self) -> list[float]:
+        return self.data.actuator_force[self._actuator].tolist()
+
+    def joint_link_angle_rad(self, joint: int) -> float:
+        """One joint's link angle (the CAN encoder's source)."""
+        return float(
+            self.data.qpos[self._motor_qpos[joint]] + self.data.qpos[self._gear_qpos[joint]]
+        )
+
+    def joint_motor_torque_nm(self, joint: int) -> float:
+        return float(self.data.actuator_force[self._actuator[joint]])
+
+    # --- pelvis, CoM, feet --------------------------------------------------------------------
+    @property
+    def pelvis_position_m(self) -> np.ndarray:
+        return self.data.xpos[self._pelvis_body].copy()
+
+    @property
+    def pelvis_rotation(self) -> np.ndarray:
+        """world <- pelvis, 3 x 3."""
+        return self.data.xmat[self._pelvis_body].reshape(3, 3).copy()
+
+    @property
+    def pelvis_tilt_rad(self) -> float:
+        """Angle between the pelvis z axis and the vertical (roll and pitch together)."""
+        return float(np.arccos(np.clip(self.data.xmat[self._pelvis_body][8], -1.0, 1.0)))
+
+    @property
+    def centre_of_mass_m(self) -> np.ndarray:
+        """The whole robot's CoM in the world [m] (MuJoCo's subtree CoM of the pelvis)."""
+        return self.data.subtree_com[self._pelvis_body].copy()
+
+    def foot_wrench(self, side: int) -> tuple[np.ndarray, np.ndarray]:
+        """(force [N], moment [N m]) of the ground on the robot at foot `side` (0 left, 1 right),
+        in the sensor frame, the moment about the sensor origin (module docstring).
+
+        MuJoCo's force/torque sensors read what the foot link (parent) exerts on the massless
+        sensor body; that body's balance makes the ground's wrench the opposite.
+        """
+        force = self.data.sensordata[self._force_adr[side] : self._force_adr[side] + 3]
+        torque = self.data.sensordata[self._torque_adr[side] : self._torque_adr[side] + 3]
+        return -force.copy(), -torque.copy()
+
+    def ft_sensor_pose(self, side: int) -> tuple[np.ndarray, np.ndarray]:
+        """(position [m], rotation world <- sensor) of foot `side`'s force/torque sensor."""
+        site = self._ft_site[side]
+        return self.data.site_xpos[site].copy(), self.data.site_xmat[site].reshape(3, 3).copy()
+
+    def sole_in_contact(self, side: int) -> bool:
+        geoms = self._sole_geoms[side]
+        return any(
+            self.data.contact[i].geom1 in geoms or self.data.contact[i].geom2 in geoms
+            for i in range(self.data.ncon)
+        )
+
+    # --- inputs -------------------------------------------------------------------------------
+    def set_servo(self, joint: int, velocity_command_rad_s: float, torque_limit_nm: float) -> None:
+        """The servo's velocity-loop input and torque cap for this step (one joint)."""
+        actuator = self._actuator[joint]
+        self.model.actuator_forcerange[actuator, 0] = -torque_limit_nm
+        self.model.actuator_forcerange[actuator, 1] = torque_limit_nm
+        self.data.ctrl[actuator] = velocity_command_rad_s
+
+    def set_servos(
+        self, velocity_commands_rad_s: np.ndarray, torque_limits_nm: np.ndarray, kv: np.ndarray
+    ) -> None:
+        """set_servo for all 12 joints at once, with the velocity P gains kv (implicit actuator
+        force kv (ctrl - qvel)); arrays in the lab order."""
+        actuators = self._actuator
+        self.model.actuator_forcerange[actuators, 0] = -torque_limits_nm
+        self.model.actuator_forcerange[actuators, 1] = torque_limits_nm
+        self.model.actuator_gainprm[actuators, 0] = kv
+        self.model.actuator_biasprm[actuators, 2] = -kv
+        self.data.ctrl[actuators] = velocity_commands_rad_s
+
+    def set_torque_off(self, joint: int, brake_damping_nms_per_rad: float) -> None:
+        """Motor output off; the dynamic brake (shorted windings) damps the motor side."""
+        self.set_servo(joint, 0.0, 0.0)
+        self._brake_damping[joint] = brake_damping_nms_per_rad
+
+    def release_brake(self, joint: int) -> None:
+        self._brake_damping[joint] = 0.0
+
+    def set_pelvis_force(self, force_n: np.ndarray | Sequence[float]) -> None:
+        """A push [N] (world frame) applied at the pelvis's centre of mass until changed."""
+        self._pelvis_force[:] = force_n
+
+    def step(self) -> None:
+        """Advance one physics step."""
+        data = self.data
+        data.xfrc_applied[self._pelvis_body, :3] = self._pelvis_force
+        data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
+        mujoco.mj_step(self.model, data)
+
+    # --- set-up -------------------------------------------------------------------------------
+    def place_standing(
+        self,
+        leg_angles_rad: np.ndarray | Sequence[float],
+        support_feet: Sequence[int] = (0, 1),
+    ) -> None:
+        """Put the robot at rest at these link angles (no deflection: motors = links) with the
+        support sole(s) flat on the floor (double support: the pelvis orientation halfway
+        between the two soles' flat orientations) and their centres around x = y = 0.
+
+        The gears are not yet loaded: let the robot settle (step) before measuring statics.
+        """
+        angles = np.asarray(leg_angles_rad, dtype=float)
+        if angles.shape != (N_LEG_JOINTS,) or not np.all(np.isfinite(angles)):
+            raise ValueError(f"leg_angles_rad must be {N_LEG_JOINTS} finite angles")
+        if not support_feet or any(side not in (0, 1) for side in support_feet):
+            raise ValueError("support_feet must name feet 0 (left) and/or 1 (right)")
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        data.qpos[self._motor_qpos] = angles
+        data.qpos[self._gear_qpos] = 0.0
+        data.qpos[:7] = (0, 0, 0, 1, 0, 0, 0)
+        mujoco.mj_kinematics(model, data)
+        rotations = [self.ft_sensor_pose(side)[1] for side in support_feet]
+        sole = rotations[0]  # pelvis <- sole, while the pelvis is at the identity
+        if len(rotations) == 2:
+            sole = sole @ _half_rotation(rotations[0].T @ rotations[1])
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(sole.T).ravel())  # flat sole: R = sole^T
+        data.qpos[3:7] = quat
+        mujoco.mj_kinematics(model, data)
+        bottoms = []
+        for side in support_feet:
+            for geom in self._sole_geoms[side]:
+                centre = data.geom_xpos[geom]
+                half_height = model.geom_size[geom][2]
+                bottoms.append(centre - np.array([0.0, 0.0, half_height]))
+        lowest = min(bottom[2] for bottom in bottoms)
+        middle = np.mean(bottoms, axis=0)
+        data.qpos[:3] = (-middle[0], -middle[1], -lowest)
+        mujoco.mj_forward(model, data)
+
+
+def _half_rotation(rotation: np.ndarray) -> np.ndarray:
+    """The rotation about the same axis by half the angle."""
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation).ravel())
+    velocity = np.zeros(3)
+    mujoco.mju_quat2Vel(velocity, quat, 2.0)  # half the rotation vector
+    half = np.zeros(4)
+    angle = float(np.linalg.norm(velocity))
+    if angle < 1e-15:
+        return np.eye(3)
+    mujoco.mju_axisAngle2Quat(half, velocity / angle, angle)
+    matrix = np.zeros(9)
+    mujoco.mju_quat2Mat(matrix, half)
+    return matrix.reshape(3, 3)

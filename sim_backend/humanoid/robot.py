@@ -1,0 +1,216 @@
+"""The emulated DYROS-JET legs: 12 H54 firmware models in front of the MuJoCo plant.
+
+Like the testbed's `EmulatedJoint`/`VirtualTestbed` (sim_backend/testbed.py), for 12 joints on
+one physics clock. Every physics step, for each joint in the lab's leg order:
+
+    firmware.compute(motor angle, motor velocity)  -> velocity-loop input, torque cap (or off)
+    plant.set_servo / set_torque_off                  (kv follows the Velocity P Gain register)
+then one MuJoCo step, then for each joint
+    firmware.report(...)   -> Present Position/Velocity/Current, overload protection
+
+so each joint has its own servo, its own torque cap and its own overload timer, read from and
+written to its own control table (an `sim_backend.dynamixel.H54Device`, or any `ControlTable`).
+The emulator's buses serve the tables (Dynamixel), `link_angle_rad(joint)` (CAN encoders) and
+`foot_wrench(side)` (CAN force/torque sensors).
+
+Mounting (`sim_backend.testbed.Mounting`) maps each joint's physical angle to what its actuator
+counts, as on the testbed; the host's configuration undoes it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams
+from sim_backend.humanoid.plant import HumanoidPlant
+from sim_backend.servo import ControlTable, H54Firmware
+from sim_backend.testbed import Mounting
+
+
+@dataclass(frozen=True)
+class PelvisPush:
+    """A constant force [N] (world frame) on the pelvis's CoM from start_s for duration_s."""
+
+    start_s: float
+    duration_s: float
+    force_n: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        if self.start_s < 0 or self.duration_s <= 0 or len(self.force_n) != 3:
+            raise ValueError("a pelvis push needs start_s >= 0, duration_s > 0 and a 3-D force")
+
+    def force_at(self, time_s: float) -> np.ndarray:
+        active = self.start_s <= time_s < self.start_s + self.duration_s
+        return np.asarray(self.force_n, dtype=float) if active else np.zeros(3)
+
+
+class EmulatedRobot:
+    """The truth of a humanoid run: 12 firmware-driven flexible joints and the MuJoCo robot.
+
+    urdf_text: the robot description (the same text the controller's model reads).
+    tables: 12 control tables in the lab's leg order (L hip yaw ... R ankle roll).
+    truth: physical parameters (RobotTruthParams; override for robustness runs).
+    initial_leg_angles_rad / support_feet: the robot is placed at rest at these link angles with
+        these soles flat on the floor (plant.place_standing); each device's goal is where it
+        stands, as a powered-up servo's.
+    motor_mountings: per joint, how the actuator is mounted (default: direction +1, offset 0).
+    """
+
+    def __init__(
+        self,
+        urdf_text: str,
+        tables: Sequence[ControlTable],
+        *,
+        truth: RobotTruthParams | None = None,
+        initial_leg_angles_rad: Sequence[float] | np.ndarray,
+        support_feet: Sequence[int] = (0, 1),
+        motor_mountings: Sequence[Mounting] | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        if len(tables) != N_LEG_JOINTS:
+            raise ValueError(f"an emulated robot needs {N_LEG_JOINTS} control tables")
+        self.truth = truth or RobotTruthParams()
+        self.tables = list(tables)
+        self.firmware = [
+            H54Firmware(table, self.truth.servo_params(i)) for i, table in enumerate(tables)
+        ]
+        self.plant = HumanoidPlant(
+            urdf_text,
+            self.truth,
+            velocity_gains_nms_per_rad=[f.velocity_gain() for f in self.firmware],
+        )
+        self.mountings = list(motor_mountings or [Mounting()] * N_LEG_JOINTS)
+        if len(self.mountings) != N_LEG_JOINTS:
+            raise ValueError(f"motor_mountings needs {N_LEG_JOINTS} entries")
+        self.pushes: list[PelvisPush] = []
+        self._rng = rng or np.random.default_rng(0)
+        self._dt = self.plant.physics_timestep_s
+        self._torque_was_on = [False] * N_LEG_JOINTS
+        self._commands = np.zeros(N_LEG_JOINTS)
+        self._caps = np.zeros(N_LEG_JOINTS)
+        self._gains = np.array([f.velocity_gain() for f in self.firmware])
+        self._no_push = np.zeros(3)
+        self.steps = 0  # time in whole physics steps: a float summed step by step drifts
+        self._origin_step: int | None = None
+        self._carry_s = 0.0
+        self.plant.place_standing(initial_leg_angles_rad, support_feet)
+        for joint, table in enumerate(self.tables):
+            table.set_item("Position P Gain", self.truth.position_gain_registers[joint])
+            self._report(joint)
+            table.set_item("Goal Position", table.item("Present Position"))
+            add_listener = getattr(table, "add_reboot_listener", None)
+            if add_listener is not None:
+                add_listener(lambda joint=joint: self.on_reboot(joint))
+
+    # --- clock --------------------------------------------------------------------------------
+    @property
+    def physics_timestep_s(self) -> float:
+        return self._dt
+
+    @property
+    def time_s(self) -> float:
+        return self.steps * self._dt
+
+    def start_scenario(self) -> None:
+        """The scenario clock (pushes) starts now (the emulator calls it at the first SYNC)."""
+        if self._origin_step is None:
+            self._origin_step = self.steps
+
+    @property
+    def scenario_time_s(self) -> float | None:
+        if self._origin_step is None:
+            return None
+        return (self.steps - self._origin_step) * self._dt
+
+    def advance(self, duration_s: float) -> int:
+        """Advance by whole physics steps covering duration_s (remainders carry over)."""
+        total = self._carry_s + duration_s
+        steps = int(math.floor(total / self._dt + 1e-9))
+        self._carry_s = total - steps * self._dt
+        for _ in range(steps):
+            self.step()
+        return steps
+
+    # --- one physics step ---------------------------------------------------------------------
+    def step(self) -> None:
+        """Firmware -> motors -> MuJoCo -> Present* items and protection, for all 12 joints."""
+        plant = self.plant
+        dt = self._dt
+        angles, velocities = plant.motor_states()
+        commands, caps, gains = self._commands, self._caps, self._gains
+        for joint, firmware in enumerate(self.firmware):
+            mount = self.mountings[joint]
+            direction = mount.direction
+            out = firmware.compute(
+                direction * angles[joint] + mount.offset_rad, direction * velocities[joint], dt
+            )
+            if out.torque_on:
+                if not self._torque_was_on[joint]:
+                    plant.release_brake(joint)
+                gains[joint] = firmware.velocity_gain()
+                commands[joint] = direction * out.velocity_command_rad_s
+                caps[joint] = out.torque_limit_nm
+            else:
+                commands[joint] = caps[joint] = 0.0
+                plant.set_torque_off(joint, firmware.params.dynamic_brake_damping_nms_per_rad)
+            self._torque_was_on[joint] = out.torque_on
+        plant.set_servos(commands, caps, gains)
+        scenario_time = self.scenario_time_s
+        push = self._no_push
+        if scenario_time is not None and self.pushes:
+            push = sum((event.force_at(scenario_time) for event in self.pushes), np.zeros(3))
+        plant.set_pelvis_force(push)
+        plant.step()
+        self.steps += 1
+        self._report_all()
+
+    def on_reboot(self, joint: int) -> None:
+        """After a device REBOOT (RAM at its defaults): the servo holds where it stands."""
+        self.firmware[joint].on_reboot()
+        self._report(joint)
+        table = self.tables[joint]
+        table.set_item("Goal Position", table.item("Present Position"))
+
+    def _report(self, joint: int) -> None:
+        firmware = self.firmware[joint]
+        noise_rms = firmware.params.current_noise_a
+        noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
+        mount = self.mountings[joint]
+        angle, velocity = self.plant.motor_state(joint)
+        firmware.report(
+            mount.direction * self.plant.joint_motor_torque_nm(joint),
+            mount.to_device(angle),
+            mount.direction * velocity,
+            self._dt,
+            current_noise_a=noise,
+        )
+
+    def _report_all(self) -> None:
+        angles, velocities = self.plant.motor_states()
+        torques = self.plant.motor_torques()
+        dt = self._dt
+        for joint, firmware in enumerate(self.firmware):
+            noise_rms = firmware.params.current_noise_a
+            noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
+            mount = self.mountings[joint]
+            direction = mount.direction
+            firmware.report(
+                direction * torques[joint],
+                direction * angles[joint] + mount.offset_rad,
+                direction * velocities[joint],
+                dt,
+                current_noise_a=noise,
+            )
+
+    # --- what the sensors read (sources for the bus emulators) --------------------------------
+    def link_angle_rad(self, joint: int) -> float:
+        """True link angle of one joint (the CAN link encoder quantises it)."""
+        return self.plant.joint_link_angle_rad(joint)
+
+    def foot_wrench(self, side: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ground's (force [N], moment [N m]) on foot `side` in its sensor frame."""
+        return self.plant.foot_wrench(side)

@@ -1,0 +1,109 @@
+"""What the emulator builds: the spec `hil` writes (from the configuration file and an
+experiment's world) and the emulator process reads (JSON, through `hil emulate --spec-file`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from sim_backend.canbus.encoder_node import RLC2IC_NOISE_COUNTS_RMS
+from sim_backend.canbus.force_sensor_node import FORCE_SENSOR_NOISE_N_RMS
+from sim_backend.dynamixel import BAUD_RATE_BPS
+from sim_backend.plant import TestbedPlantParams
+from sim_backend.scenario import Scenario
+from sim_backend.servo import H54ServoParams
+
+CLOCKS = ("lockstep", "realtime")
+ROBOTS = ("testbed", "dyros-jet")
+
+
+@dataclass(frozen=True)
+class HumanoidSpec:
+    """What the emulator needs beyond the buses to build the humanoid.
+
+    urdf_text: the robot description (the same the host's model reads).
+    ft_sensor_node_ids: the left and right foot's force/torque node IDs (0: none).
+    initial_leg_angles_rad: the posture the robot is placed in, standing, at power-on.
+    truth: RobotTruthParams overrides (plain values; the H54 servo comes from the spec's servo).
+    """
+
+    urdf_text: str
+    ft_sensor_node_ids: tuple[int, int]
+    initial_leg_angles_rad: tuple[float, ...]
+    support_feet: tuple[int, ...] = (0, 1)
+    truth: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class EmulatedJointSpec:
+    """One emulated joint: its bus addresses and how its sensors are mounted."""
+
+    dxl_id: int
+    encoder_node_id: int
+    encoder_counts_per_rev: int = 983_040
+    encoder_direction: int = 1
+    encoder_offset_rad: float = 0.0
+    motor_direction: int = 1
+    motor_offset_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Measurement noise of the emulated CAN sensors, zero-mean Gaussian before each device's
+    rounding, drawn from generators seeded by `EmulatorSpec.seed` (same seed, same values; the
+    H54's own Present Current / Velocity noise is in `H54ServoParams`).
+
+    link_encoder_counts_rms: every link encoder's read-head noise [counts rms]; nominal 0.5
+        (`sim_backend.canbus.encoder_node`: RLS give no jitter figure; ~1 count of flicker).
+    force_sensor_n_rms: the obstacle's force sensor [N rms]; nominal 0.05 N (an assumption: the
+        paper names no sensor; `sim_backend.canbus.force_sensor_node`).
+    """
+
+    link_encoder_counts_rms: float = RLC2IC_NOISE_COUNTS_RMS
+    force_sensor_n_rms: float = FORCE_SENSOR_NOISE_N_RMS
+
+    def __post_init__(self) -> None:
+        for name in ("link_encoder_counts_rms", "force_sensor_n_rms"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"sensor noise {name} must be a finite rms >= 0, got {value}")
+
+
+@dataclass(frozen=True)
+class EmulatorSpec:
+    """Everything the emulator process needs; `hil` builds it from the configuration file."""
+
+    joints: tuple[EmulatedJointSpec, ...]
+    baudrate: int = 3_000_000
+    can_bitrate: int = 1_000_000
+    force_sensor_node_id: int = 0
+    period_s: float = 0.005
+    clock: str = "lockstep"
+    seed: int = 0
+    plant: TestbedPlantParams = field(default_factory=TestbedPlantParams)
+    servo: H54ServoParams = field(default_factory=H54ServoParams)
+    scenario: Scenario = field(default_factory=Scenario)
+    reboot_time_s: float = 0.5
+    heartbeat_ms: int = 100
+    sensor_noise: SensorNoise = field(default_factory=SensorNoise)
+    robot: str = "testbed"  # or "dyros-jet" (with `humanoid`)
+    humanoid: HumanoidSpec | None = None
+
+    def __post_init__(self) -> None:
+        if not self.joints:
+            raise ValueError("the emulator needs at least one joint")
+        if self.robot not in ROBOTS:
+            raise ValueError(f"robot must be one of {ROBOTS}, got {self.robot!r}")
+        if (self.robot == "dyros-jet") != (self.humanoid is not None):
+            raise ValueError("a dyros-jet emulator needs its HumanoidSpec, and only it")
+        if self.clock not in CLOCKS:
+            raise ValueError(f"clock must be one of {CLOCKS}, got {self.clock!r}")
+        if self.baudrate not in BAUD_RATE_BPS.values():
+            raise ValueError(
+                f"an H54 cannot run at {self.baudrate} bps; its Baud Rate item offers "
+                f"{sorted(BAUD_RATE_BPS.values())}"
+            )
+        if not self.period_s > 0:
+            raise ValueError("period_s must be > 0")
