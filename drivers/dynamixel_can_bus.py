@@ -37,6 +37,7 @@ from drivers.joint_bus import (
     BusError,
     BusFault,
     DeviceRole,
+    Diagnostic,
     JointBus,
     JointDevices,
     JointSample,
@@ -120,6 +121,10 @@ class DynamixelCanBusConfig:
     can_channels: tuple[CanChannelConfig, ...]
     link_timeout_s: float = 0.002  # how long a tick waits for the TPDOs after SYNC
     allow_torque_off: bool = False  # may open() turn torque off to rewrite EEPROM items?
+    # read_only: open() writes nothing to the actuators (no EEPROM or RAM configuration) and
+    # every command raises BusError; the link encoders are still brought up (NMT, TPDO
+    # settings), which they need to send their position at all.
+    read_only: bool = False
     layout: BusLayout = field(init=False)
 
     def __post_init__(self) -> None:
@@ -150,7 +155,10 @@ class DynamixelCanBus(JointBus):
     def open(self) -> None:
         try:
             for chain in self.chains:
-                chain.open(allow_torque_off=self.config.allow_torque_off)
+                chain.open(
+                    allow_torque_off=self.config.allow_torque_off,
+                    read_only=self.config.read_only,
+                )
             for channel in self.config.can_channels:
                 try:
                     can_bus = can.Bus(**channel.bus_kwargs)
@@ -196,7 +204,13 @@ class DynamixelCanBus(JointBus):
         except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
             raise BusError(f"the bus failed while reading: {exc}") from exc
         sample.timestamp_s = links[0].sync_time_s
+        temperature = np.full(self.n_joints, np.nan)
+        voltage = np.full(self.n_joints, np.nan)
+        sample.diagnostics[Diagnostic.ACTUATOR_TEMPERATURE_C] = temperature
+        sample.diagnostics[Diagnostic.ACTUATOR_INPUT_VOLTAGE_V] = voltage
         for joints, chain, motor in zip(self._chain_joints, self.chains, motors, strict=True):
+            temperature[joints] = motor.temperature_c
+            voltage[joints] = motor.input_voltage_v
             sample.motor_angle_rad[joints] = motor.position_rad
             sample.motor_velocity_rad_s[joints] = motor.velocity_rad_s
             sample.motor_current_a[joints] = motor.current_a

@@ -36,6 +36,14 @@ class ActuatorFault(enum.IntFlag):
         return "|".join(names) if names else "none"
 
 
+class Diagnostic(enum.StrEnum):
+    """Per-joint readings a bus may report beside the control signals (`JointSample.diagnostics`),
+    SI units in the name. A bus that cannot read one leaves it out."""
+
+    ACTUATOR_TEMPERATURE_C = "actuator_temperature_c"
+    ACTUATOR_INPUT_VOLTAGE_V = "actuator_input_voltage_v"
+
+
 class DeviceRole(enum.Enum):
     """Which device of a joint a bus fault concerns."""
 
@@ -83,6 +91,8 @@ class JointSample:
     bus_errors: list[BusFault] = field(default_factory=list)  # what went wrong this tick
     notes: list[str] = field(default_factory=list)  # bus events worth logging (boot-up, EMCY)
     extra: dict[str, float] = field(default_factory=dict)  # named sensors, e.g. contact force
+    # per-joint arrays by Diagnostic (temperature, supply voltage), NaN where not read this tick
+    diagnostics: dict[Diagnostic, np.ndarray] = field(default_factory=dict)
 
     @classmethod
     def empty(cls, n_joints: int, timestamp_s: float = 0.0) -> JointSample:

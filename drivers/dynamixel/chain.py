@@ -44,7 +44,7 @@ from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, E
 from drivers.dynamixel.hardware_error import HardwareError
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.state import DeviceInfo, DynamixelState, HardwareErrorStatus
-from drivers.dynamixel.state_block import STATE_BLOCK_ITEMS, StateBlockLayout
+from drivers.dynamixel.state_block import STATE_BLOCK_ITEMS, DirectStateSpan, StateBlockLayout
 from drivers.dynamixel.units import (
     current_a_to_torque_estimate_nm,
     current_limit_raw_to_a,
@@ -113,6 +113,10 @@ class DynamixelChain:
         self._sync_write: GroupSyncWrite | None = None
         self._raw = np.zeros((len(self._ids), len(self.layout.items)), dtype=np.int64)
         self.devices: tuple[DeviceInfo, ...] = ()
+        self.read_only = False
+        # Read-only on devices without the state-block map: the span read (see DirectStateSpan).
+        self._direct: DirectStateSpan | None = None
+        self._direct_columns = np.array(DirectStateSpan(self.spec).columns, dtype=np.intp)
 
     # ----------------------------------------------------------------------------- properties
 
@@ -139,8 +143,14 @@ class DynamixelChain:
 
     # ------------------------------------------------------------------------------ lifecycle
 
-    def open(self, *, allow_torque_off: bool = False) -> None:
+    def open(self, *, allow_torque_off: bool = False, read_only: bool = False) -> None:
         """Open the port, identify every device, configure what differs. Never enables torque.
+
+        read_only=True: identify and read, write nothing at all (a monitor, a calibration):
+        what the configuration would change is only recorded (`DeviceInfo.eeprom_changes`), the
+        Status Return Level must already answer READs, and `write_goals`, `enable`, `disable`
+        and `reboot` raise `BusError`. Where a device lacks the state-block map, the state is
+        read from its contiguous RAM span instead (`DirectStateSpan`).
 
         Identification: PING each ID and check its model number; any missing ID or wrong model
         raises one `BusError` naming them all, the port and the baud rate.
@@ -165,6 +175,8 @@ class DynamixelChain:
             labels=self._labels,
             where=f"{self.config.port} at {self.config.baudrate} bps",
         )
+        self.read_only = read_only
+        self._decoder = self.layout.decoder()
         try:
             self._open_devices(self._io, allow_torque_off)
         except BaseException:
@@ -177,6 +189,7 @@ class DynamixelChain:
         self._io = None
         self._sync_read = None
         self._sync_write = None
+        self._direct = None
         if port is not None and port.is_open:
             port.closePort()
 
@@ -209,7 +222,7 @@ class DynamixelChain:
             errors.append(reason)
             reasons.update(dict.fromkeys(self._ids, reason))
             return self._state_from_raw(raw, valid, alert, errors, reasons)
-        size = self.layout.size
+        size = self.layout.size if self._direct is None else self._direct.size
         expected_length = size + 4  # LEN field: INST + ERR + data + CRC(2)
         pending = dict(self._index_of)
         corrupt = 0
@@ -241,11 +254,19 @@ class DynamixelChain:
                 errors.append(f"{io.label(dxl_id)}: {reason}")
                 reasons[dxl_id] = reason
             else:
-                raw[index] = self._decoder.unpack_from(bytes(packet), PKT_DATA)
+                if self._direct is None:
+                    raw[index] = self._decoder.unpack_from(bytes(packet), PKT_DATA)
+                else:
+                    raw[index, self._direct_columns] = self._decoder.unpack_from(
+                        bytes(packet), PKT_DATA
+                    )
+                    raw[index, _HW_ERROR] = 0  # read below if the Alert bit says there is one
                 valid[index] = True
                 alert[index] = bool(error & ERRBIT_ALERT)
             if not pending:
                 break
+        if self._direct is not None:
+            self._read_alerted_errors(raw, valid & alert, errors)
         if pending:
             why = f"{corrupt} corrupt reply(s) received" if corrupt else "timeout"
             for dxl_id in pending:
@@ -261,7 +282,7 @@ class DynamixelChain:
         Limit error would be invisible. Goals inside the range map inside the device limits
         (they are rounded outwards, see `DynamixelJointConfig.device_position_limits_pulses`).
         """
-        self._require_io()
+        self._require_writable("goal positions")
         sync_write = self._sync_write
         assert sync_write is not None
         goal = np.asarray(goal_rad, dtype=np.float64)
@@ -299,7 +320,7 @@ class DynamixelChain:
         Position, Torque Enable := 1, read back. If a later device fails, the earlier ones stay
         enabled (the caller decides; `disable()` is best effort).
         """
-        io = self._require_io()
+        io = self._require_writable("torque on")
         targets = self._select(ids)
         faulty = {}
         for dxl_id in targets:
@@ -354,7 +375,7 @@ class DynamixelChain:
         Every device is tried even if one fails; afterwards one `BusError` lists the failures.
         A reply with only the Alert bit set counts as success (a device in shutdown).
         """
-        io = self._require_io()
+        io = self._require_writable("torque off")
         failures = []
         torque_item = self.spec.item("Torque Enable")
         for dxl_id in self._select(ids):
@@ -374,7 +395,7 @@ class DynamixelChain:
         `reboot_timeout_s` (else `BusError`); then re-applies the RAM settings (Status Return
         Level, gains). Torque is off after a reboot (RAM defaults): call `enable()` to resume.
         """
-        io = self._require_io()
+        io = self._require_writable("reboot")
         targets = self._select(ids)
         for dxl_id in targets:
             result, error = self._packet.reboot(io.port, dxl_id)
@@ -404,6 +425,25 @@ class DynamixelChain:
         return HardwareErrorStatus(dxl_id, data[0], alert)
 
     # ------------------------------------------------------------------------------ internals
+
+    def _read_alerted_errors(self, raw: np.ndarray, alerted: np.ndarray, errors: list[str]) -> None:
+        """Span reads only: Hardware Error Status of each device whose reply carried the Alert
+        bit (one READ each; none while every device is healthy)."""
+        io = self._require_io()
+        for index in np.flatnonzero(alerted):
+            dxl_id = self._ids[index]
+            try:
+                raw[index, _HW_ERROR] = self.read_hardware_error(dxl_id).bits
+            except BusError as exc:
+                errors.append(f"{io.label(dxl_id)}: Alert set, Hardware Error Status unread: {exc}")
+
+    def _require_writable(self, what: str) -> DeviceIO:
+        io = self._require_io()
+        if self.read_only:
+            raise BusError(
+                f"Dynamixel chain on {self.config.port} was opened read-only: {what} refused"
+            )
+        return io
 
     def _require_io(self) -> DeviceIO:
         if self._io is None:
@@ -470,14 +510,33 @@ class DynamixelChain:
 
     def _open_devices(self, io: DeviceIO, allow_torque_off: bool) -> None:
         found = configure.identify(io, self._ids, self.spec)
-        for dxl_id in self._ids:
-            configure.ensure_status_return_level(io, dxl_id, self.spec)
+        if not self.read_only:
+            for dxl_id in self._ids:
+                configure.ensure_status_return_level(io, dxl_id, self.spec)
         plans = {
             joint.dxl_id: configure.eeprom_plan(io, joint, self.config, self.layout)
             for joint in self._joints
         }
         torque_item = self.spec.item("Torque Enable")
         torque_on = {dxl_id: io.read_item(dxl_id, torque_item) != 0 for dxl_id in self._ids}
+        if self.read_only:
+            map_start = self.layout.indirect_address_start
+            unmapped = any(w.address == map_start for plan in plans.values() for w in plan)
+            if unmapped:  # the map is an EEPROM write: read the plain span instead
+                self._direct = DirectStateSpan(self.spec)
+                self._decoder = self._direct.decoder()
+        else:
+            self._configure(io, plans, torque_on, allow_torque_off)
+        self._finish_open(io, found, plans, torque_on)
+
+    def _configure(
+        self,
+        io: DeviceIO,
+        plans: dict[int, list[configure.EepromWrite]],
+        torque_on: dict[int, bool],
+        allow_torque_off: bool,
+    ) -> None:
+        torque_item = self.spec.item("Torque Enable")
         blocked = [dxl_id for dxl_id in self._ids if plans[dxl_id] and torque_on[dxl_id]]
         if blocked and not allow_torque_off:
             details = "; ".join(
@@ -500,6 +559,14 @@ class DynamixelChain:
             configure.apply_eeprom_plan(io, dxl_id, plans[dxl_id])
         for joint in self._joints:
             configure.apply_ram_settings(io, joint, self.spec)
+
+    def _finish_open(
+        self,
+        io: DeviceIO,
+        found: dict[int, tuple[int, int]],
+        plans: dict[int, list[configure.EepromWrite]],
+        torque_on: dict[int, bool],
+    ) -> None:
         shutdown_item = self.spec.item("Shutdown")
         torque_limit_item = self.spec.item("Torque Limit")
         self.devices = tuple(
@@ -517,9 +584,8 @@ class DynamixelChain:
             )
             for dxl_id in self._ids
         )
-        self._sync_read = GroupSyncRead(
-            io.port, self._packet, self.layout.data_start, self.layout.size
-        )
+        block = self.layout if self._direct is None else self._direct
+        self._sync_read = GroupSyncRead(io.port, self._packet, block.data_start, block.size)
         self._sync_write = GroupSyncWrite(
             io.port, self._packet, self.spec.item("Goal Position").address, 4
         )

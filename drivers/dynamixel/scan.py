@@ -8,7 +8,7 @@ asked for that the broadcast missed, or every ID 0..252 if the broadcast found n
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler
@@ -36,6 +36,7 @@ def scan(
     ids: Iterable[int] | None = None,
     *,
     latency_timer_ms: float = 1.0,
+    on_ping: Callable[[int, int], None] | None = None,
 ) -> list[FoundDevice]:
     """Devices answering on `port` at `baudrate`, sorted by ID.
 
@@ -43,6 +44,7 @@ def scan(
     every ID 0..252 is pinged one by one only if the broadcast found nothing (about 1 s more
     with the default timeout). Raises `BusError` with a clear message if the port cannot be
     opened or the SDK cannot set the baud rate. Read-only: sends only PING and READ.
+    on_ping(done, of): called after each single PING of the fallback (for a progress bar).
     """
     explicit_ids = ids is not None
     wanted = sorted(set(range(MAX_DXL_ID + 1) if ids is None else ids))
@@ -62,10 +64,12 @@ def scan(
         # Fall back to one PING per ID: for the IDs asked for that the broadcast missed, or for
         # the whole range if the broadcast found nothing at all.
         if explicit_ids or not found:
-            for dxl_id in wanted:
+            for done, dxl_id in enumerate(wanted, start=1):
                 if dxl_id in found:
                     continue
                 model, result, _ = packet.ping(handler, dxl_id)
+                if on_ping is not None:
+                    on_ping(done, len(wanted))
                 if result != COMM_SUCCESS:
                     continue
                 firmware, result, _ = packet.read1ByteTxRx(

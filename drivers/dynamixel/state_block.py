@@ -94,3 +94,55 @@ class StateBlockLayout:
         """A `struct.Struct` that unpacks the block into the values of STATE_BLOCK_ITEMS."""
         codes = "".join(_STRUCT_CODES[(item.size, item.signed)] for item in self.items)
         return struct.Struct("<" + codes)
+
+
+# The state items that sit in one contiguous stretch of the H54's RAM (Torque Enable 562 ..
+# Present Temperature 625); Hardware Error Status (892) lies far beyond it.
+# Listed in address order.
+DIRECT_SPAN_ITEMS: tuple[str, ...] = (
+    "Torque Enable",
+    "Present Position",
+    "Present Velocity",
+    "Present Current",
+    "Present Input Voltage",
+    "Present Temperature",
+)
+
+
+@dataclass(frozen=True)
+class DirectStateSpan:
+    """The state block read without the indirect map: one SYNC_READ of the contiguous span
+    Torque Enable .. Present Temperature, for a chain opened read-only on devices that have no
+    state-block map yet (writing the map is an EEPROM write). Hardware Error Status is outside
+    the span: a device reports a latched error through the Alert bit of every status packet
+    (e-Manual Protocol 2.0, "Status Packet"), and only then is it read on its own."""
+
+    spec: ModelSpec
+
+    @property
+    def items(self) -> tuple[ControlItem, ...]:
+        return tuple(self.spec.item(name) for name in DIRECT_SPAN_ITEMS)
+
+    @property
+    def data_start(self) -> int:
+        return min(item.address for item in self.items)
+
+    @property
+    def size(self) -> int:
+        return max(item.address + item.size for item in self.items) - self.data_start
+
+    @property
+    def columns(self) -> tuple[int, ...]:
+        """Where each decoded value goes in a row of STATE_BLOCK_ITEMS."""
+        return tuple(STATE_BLOCK_ITEMS.index(name) for name in DIRECT_SPAN_ITEMS)
+
+    def decoder(self) -> struct.Struct:
+        """Unpacks the span into the values of DIRECT_SPAN_ITEMS (in that order: the items are
+        placed by address with pad bytes between them)."""
+        codes, cursor = "", self.data_start
+        for item in self.items:
+            if item.address < cursor:
+                raise ValueError("DIRECT_SPAN_ITEMS must be listed in address order")
+            codes += "x" * (item.address - cursor) + _STRUCT_CODES[(item.size, item.signed)]
+            cursor = item.address + item.size
+        return struct.Struct("<" + codes)

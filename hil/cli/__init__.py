@@ -6,6 +6,8 @@
     hil scan --port PATH [--baudrate N]
     hil reboot [--config FILE] [--port ...]
     hil bench bus|loop [--json]
+    hil monitor [--config FILE | --attach JSON] [--json] [--rate HZ] [--duration S]
+    hil calibrate [--config FILE] [--attach JSON] [--seconds S] [--pose [NAME=]RAD] [--write]
     hil config                 print the sample configuration file
 
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
@@ -62,6 +64,14 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.devices import cmd_reboot, cmd_scan
 
         return cmd_scan(args) if args.command == "scan" else cmd_reboot(args)
+    if args.command == "monitor":
+        from hil.cli.monitor import cmd_monitor
+
+        return cmd_monitor(args)
+    if args.command == "calibrate":
+        from hil.cli.calibrate import cmd_calibrate
+
+        return cmd_calibrate(args)
     if args.command == "bench":
         from hil.cli.bench import cmd_bench
 

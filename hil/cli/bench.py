@@ -1,4 +1,4 @@
-"""`hil bench bus|loop [--json] [--cycles N] [--config F]`: measure, print the figures."""
+"""`hil bench bus|loop|log [--json] [--cycles N] [--config F]`: measure, print the figures."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import sys
 from drivers.joint_bus import BusError
 from hil.bench.bus import DEFAULT_BUS_CYCLES, bus_report_text, run_bench_bus
 from hil.bench.common import BenchError, without_nan
+from hil.bench.log import DEFAULT_LOG_TICKS, log_report_text, run_bench_log
 from hil.bench.loop import DEFAULT_LOOP_TICKS, loop_report_text, run_bench_loop
 from hil.bench.soak import DEFAULT_SOAK_TICKS, run_soak, soak_report_text
 from hil.cli.common import checked_config
@@ -36,6 +37,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if args.what == "bus":
             report = run_bench_bus(config, cycles or DEFAULT_BUS_CYCLES, say=say)
             text = bus_report_text(report)
+        elif args.what == "log":
+            bar = False if args.json else None  # None: a bar when stderr is a terminal
+            report = run_bench_log(config, cycles or DEFAULT_LOG_TICKS, say=say, progress=bar)
+            text = log_report_text(report)
         elif args.what == "loop":
             report = run_bench_loop(config, cycles or DEFAULT_LOOP_TICKS, say=say)
             text = loop_report_text(report)

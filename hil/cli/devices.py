@@ -9,6 +9,7 @@ import sys
 from hil.cli.common import checked_config, connection_overrides, load_attach
 from hil.cli.exit_codes import ExitCode
 from hil.config import ConfigError
+from hil.output.progress import Progress
 
 SCAN_BAUDRATES = (3_000_000, 4_000_000, 1_000_000, 2_000_000, 57_600, 115_200, 9_600)
 
@@ -19,34 +20,43 @@ def cmd_scan(args: argparse.Namespace) -> int:
 
     bauds = (args.baudrate,) if args.baudrate else SCAN_BAUDRATES
     found: list[dict] = []
-    for baud in bauds:
-        try:
-            devices = scan(args.port, baud)
-        except BusError as exc:
-            print(f"hil scan: {exc}", file=sys.stderr)
-            return ExitCode.FAILED
-        except ValueError as exc:
-            print(f"hil scan: {exc}", file=sys.stderr)
-            return ExitCode.USAGE
-        if not args.json:
-            print(f"{args.port} at {baud} bps: {len(devices)} device(s)")
-        for device in devices:
-            found.append(
-                {
-                    "id": device.dxl_id,
-                    "model_number": device.model_number,
-                    "model": device.model_name,
-                    "firmware": device.firmware_version,
-                    "baudrate": baud,
-                }
-            )
+    # A bar over the baud rates (a one-by-one PING of every ID moves it within one), on a
+    # terminal only; the per-baud lines stay.
+    with Progress(len(bauds), unit="bauds", desc=f"scan {args.port}") as bar:
+        for number, baud in enumerate(bauds):
+            bar.update_to(number, f"{baud} bps")
+
+            def pinged(done: int, of: int, number: int = number) -> None:
+                bar.update_to(number + done / of)
+
+            try:
+                devices = scan(args.port, baud, on_ping=pinged)
+            except BusError as exc:
+                print(f"hil scan: {exc}", file=sys.stderr)
+                return ExitCode.FAILED
+            except ValueError as exc:
+                print(f"hil scan: {exc}", file=sys.stderr)
+                return ExitCode.USAGE
             if not args.json:
-                print(
-                    f"  ID {device.dxl_id:3d}  {device.model_name} (model {device.model_number}), "
-                    f"firmware {device.firmware_version}"
+                bar.write(f"{args.port} at {baud} bps: {len(devices)} device(s)", sys.stdout)
+            for device in devices:
+                found.append(
+                    {
+                        "id": device.dxl_id,
+                        "model_number": device.model_number,
+                        "model": device.model_name,
+                        "firmware": device.firmware_version,
+                        "baudrate": baud,
+                    }
                 )
-        if devices and not args.baudrate:
-            break  # devices on one line share a baud: stop at the first that answers
+                if not args.json:
+                    bar.write(
+                        f"  ID {device.dxl_id:3d}  {device.model_name} (model "
+                        f"{device.model_number}), firmware {device.firmware_version}",
+                        sys.stdout,
+                    )
+            if devices and not args.baudrate:
+                break  # devices on one line share a baud: stop at the first that answers
     if args.json:
         print(json.dumps({"port": args.port, "devices": found}))
     elif not found:

@@ -8,7 +8,7 @@ from pathlib import Path
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
 from hil.experiments import EXPERIMENTS
 
-BENCH_TARGETS = ("bus", "loop", "soak")
+BENCH_TARGETS = ("bus", "loop", "soak", "log")
 
 
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
@@ -71,6 +71,20 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     )
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument(
+        "--no-mcap", action="store_true", help="do not write run.mcap beside the CSV log"
+    )
+    run.add_argument(
+        "--live",
+        action="store_true",
+        help="serve the run's signals to Foxglove (WebSocket) while it goes",
+    )
+    run.add_argument(
+        "--live-host",
+        default="127.0.0.1",
+        help="address the live server listens on (default: loopback only)",
+    )
+    run.add_argument("--live-port", type=int, default=8765, help="its port (8765; 0: any free)")
+    run.add_argument(
         "--current-guard",
         choices=["on", "off"],
         help="the software overload guard (default: the config's; the comparison runs without "
@@ -121,5 +135,42 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seed", type=int, default=0, help="soak: the faults' random seed")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
 
+    _add_bringup(sub)
     sub.add_parser("config", help="print the sample configuration file")
     return parser
+
+
+def _add_bringup(sub: argparse._SubParsersAction) -> None:
+    monitor = sub.add_parser(
+        "monitor",
+        help="a live table of every joint, read-only (torque is left as found)",
+        description="Reads every joint at a steady rate and flags what is outside the "
+        "configuration's limits. Nothing is written to any actuator; Ctrl-C leaves everything "
+        "as it was.",
+    )
+    monitor.add_argument("--config", type=Path, help="configuration file (default: built-in)")
+    monitor.add_argument("--json", action="store_true", help="one JSON object per sample line")
+    monitor.add_argument("--rate", type=float, default=10.0, help="samples per second (10)")
+    monitor.add_argument("--duration", type=float, help="stop after this many seconds")
+    _add_connection_overrides(monitor)
+
+    calibrate = sub.add_parser(
+        "calibrate",
+        help="measure the zero offsets at the reference pose (read-only)",
+        description="Hold every joint still at its reference pose (torque off, gear unloaded); "
+        "prints motor_offset_rad and encoder_offset_rad per joint, or with --write updates "
+        "the --config file in place (a backup is kept).",
+    )
+    calibrate.add_argument("--config", type=Path, help="configuration file (default: built-in)")
+    calibrate.add_argument("--seconds", type=float, default=2.0, help="averaging window [s] (2)")
+    calibrate.add_argument(
+        "--pose",
+        action="append",
+        default=[],
+        metavar="[NAME=]RAD",
+        help="the joint angle the robot is held at (default 0 for every joint)",
+    )
+    calibrate.add_argument(
+        "--write", action="store_true", help="update the --config file (keeps FILE.bak)"
+    )
+    _add_connection_overrides(calibrate)

@@ -11,6 +11,7 @@ from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError
 from hil.experiments import get_experiment
 from hil.loop import StopFlag
+from hil.output.channels import MessageSink
 from hil.safety import ReferenceOutsideLimits
 from hil.session import Session, SessionError, Setup, run_comparison
 from hil.vocabulary import ControllerChoice
@@ -75,6 +76,27 @@ def _check_combinations(args: argparse.Namespace, embedded: bool, faults: tuple)
         raise ConfigError(f"--duration: must be a finite time > 0 s, got {args.duration}")
 
 
+def _live(args: argparse.Namespace) -> tuple[MessageSink, ...]:
+    """--live: the Foxglove WebSocket server (loopback unless --live-host names another)."""
+    if not args.live:
+        return ()
+    if not 0 <= args.live_port <= 65535:
+        raise ConfigError(f"--live-port: must be in 0..65535, got {args.live_port}")
+    from hil.output.live import LivePublisher
+
+    try:
+        publisher = LivePublisher(args.live_host, args.live_port)
+    except Exception as exc:  # the SDK raises its own error types: say what it said
+        raise ConfigError(
+            f"--live: cannot listen on {args.live_host}:{args.live_port}: {exc}"
+        ) from exc
+    print(
+        f"hil run: live view on {publisher.url} (Foxglove: Open connection > Foxglove WebSocket)",
+        file=sys.stderr,
+    )
+    return (publisher,)
+
+
 def _check_timeline(args: argparse.Namespace, faults: tuple, overruns: tuple) -> None:
     """Refuse what would silently not happen: a fault after the run's end, an attached emulator
     built for another experiment's world."""
@@ -105,6 +127,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     _check_combinations(args, embedded, faults)
     _check_timeline(args, faults, overruns)
     setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
+    sinks = _live(args)
+    try:
+        return _run(args, config, setup, faults, overruns, sinks)
+    finally:
+        for sink in sinks:
+            sink.close()
+
+
+def _run(
+    args: argparse.Namespace,
+    config: Config,
+    setup: Setup,
+    faults: tuple,
+    overruns: tuple,
+    sinks: tuple[MessageSink, ...],
+) -> int:
     session = Session(
         config,
         setup,
@@ -115,6 +153,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         out_root=args.out,
         plots=not args.no_plots,
         json_output=args.json,
+        mcap=not args.no_mcap,
+        sinks=sinks,
     )
     stop = StopFlag()
     stop.install()

@@ -219,10 +219,15 @@ class SafetySection(Section):
 
     link_noise_*: the link-encoder noise watch (hil/safety/watches.py LinkNoiseWatch).
     overrun_window_s: missed deadlines are counted over this sliding window.
+    zero_offset_margin_rad: at rest with torque off, how far the link and motor angles may
+        disagree before the zero offsets are called wrong (the start gate refuses the run,
+        `hil monitor` flags it). It must hold the gear's static deflection under gravity
+        (m g r / K: 3.1 mrad on the paper's testbed) and its friction (~2 mrad).
     """
 
     max_goal_rate_rad_s: float = Field(2.0, gt=0)
     max_deflection_rad: float = Field(0.06, gt=0)
+    zero_offset_margin_rad: float = Field(0.01, gt=0)
     current_guard: bool = True
     current_guard_fraction: float = Field(0.8, gt=0, le=1)
     current_guard_time_s: float = Field(0.6, gt=0)
@@ -255,6 +260,15 @@ class SafetySection(Section):
 
     def reaction(self, cause: SafetyCause) -> Reaction:
         return getattr(self, cause.config_key)
+
+    @model_validator(mode="after")
+    def _margin(self) -> SafetySection:
+        if self.zero_offset_margin_rad > self.max_deflection_rad:
+            raise ValueError(
+                f"zero_offset_margin_rad ({self.zero_offset_margin_rad}) must not exceed "
+                f"max_deflection_rad ({self.max_deflection_rad})"
+            )
+        return self
 
     @field_validator("on_exit")
     @classmethod

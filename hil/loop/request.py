@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.experiments import Experiment
+from hil.output.channels import MessageSink
 from hil.vocabulary import ControllerChoice
 
 
@@ -23,6 +24,8 @@ class RunRequest:
     reboot_first: bool = False
     on_event: Callable[[str], None] | None = None  # a line per safety event (stderr)
     on_progress: Callable[[float, float], None] | None = None  # (loop time, run duration)
+    mcap: bool = True  # write run.mcap beside the CSV files
+    sinks: tuple[MessageSink, ...] = ()  # more receivers of the log's messages (live view)
 
     @property
     def run_duration_s(self) -> float:

@@ -124,7 +124,14 @@ class Loop:
         self._kdist: np.ndarray | None = None
         self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
         self.sensor_columns = sensor_columns(config)
-        self.log = RunLog(request.out_dir, config.joint_names, meta, self.sensor_columns)
+        self.log = RunLog(
+            request.out_dir,
+            config.joint_names,
+            meta,
+            self.sensor_columns,
+            mcap=request.mcap,
+            sinks=request.sinks,
+        )
         self._sensor_values = [math.nan] * len(self.sensor_columns)
         self.homing: HomingPlan | None = None
         self.references = np.zeros((0, n))
@@ -200,7 +207,10 @@ class Loop:
         self._log_safety()
         t_done = time.perf_counter()
         self._log_row(tick, sample, reference, goal, phase)
-        self.log.write_timing(k, t_compute - t_read, t_done - t_compute, 0.0)
+        t_logged = time.perf_counter()
+        self.log.write_timing(
+            k, t_compute - t_read, t_done - t_compute, 0.0, t_logged - t_done, tick.time_s
+        )
         on_progress = self.request.on_progress
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
             on_progress(tick.time_s, self.timeline.end * self.period)

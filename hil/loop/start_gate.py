@@ -5,8 +5,9 @@ Refused (`StartRefused`, nothing was moved) when, after up to START_READ_ATTEMPT
     read again; a fault that persists is refused);
     a link sensor did not answer;
     a motor stands outside its joint's range;
-    a joint's link-minus-motor angle at rest exceeds the deflection bound (wrong zero offsets
-    show up here).
+    a joint's link and motor angles disagree at rest by more than [safety]
+    zero_offset_margin_rad: the zero offsets (motor_offset_rad, encoder_offset_rad) are wrong,
+    and the message says what each would have to be (`hil calibrate` measures them).
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import numpy as np
 from drivers.joint_bus import ActuatorFault, JointBus, JointDevices, JointSample
 from hil.config import Config
 
-START_DEFLECTION_FACTOR = 1.0  # |deflection| at rest must be below the safety bound times this
 # The gate reads again before refusing: the supervisor tolerates a lost reply or TPDO during a
 # run, so one at the first read should not stop the run either. (Each extra read is a SYNC: in
 # lock-step emulation the plant then starts that many periods ahead of tick 0; the widened
@@ -118,7 +118,6 @@ def _reboot(
 
 
 def _check_at_rest(config: Config, sample: JointSample, devices: Sequence[JointDevices]) -> None:
-    bound = START_DEFLECTION_FACTOR * config.safety.max_deflection_rad
     for i, joint in enumerate(config.joints):
         if not sample.link_valid[i]:
             raise StartRefused(
@@ -131,9 +130,27 @@ def _check_at_rest(config: Config, sample: JointSample, devices: Sequence[JointD
                 f"range [{joint.min_angle_rad:+.3f}, {joint.max_angle_rad:+.3f}] rad: move it "
                 "inside by hand (torque is off), or widen the range in the configuration"
             )
-        deflection = float(np.asarray(sample.link_angle_rad)[i] - motor)
-        if abs(deflection) > bound:
-            raise StartRefused(
-                f"joint {joint.name}: link minus motor angle is {deflection:+.4f} rad at rest "
-                f"(more than {bound} rad): are encoder_offset_rad and motor_offset_rad set?"
-            )
+        link = float(np.asarray(sample.link_angle_rad)[i])
+        check_zero_offsets(config, i, motor, link)
+
+
+def check_zero_offsets(config: Config, joint_index: int, motor_rad: float, link_rad: float) -> None:
+    """Refuse when the link and motor angles at rest disagree by more than the margin; the
+    message names the keys and the value each would need (if the other one is right)."""
+    joint = config.joints[joint_index]
+    margin = config.safety.zero_offset_margin_rad
+    deflection = link_rad - motor_rad
+    if abs(deflection) <= margin:
+        return
+    # link = d_e (r_e - o_e): o_e + d_e * deflection makes the link read the motor's angle;
+    # motor = d_m (r_m - o_m): o_m - d_m * deflection makes the motor read the link's.
+    encoder_fix = joint.encoder_offset_rad + joint.encoder_direction * deflection
+    motor_fix = joint.motor_offset_rad - joint.motor_direction * deflection
+    raise StartRefused(
+        f"joint {joint.name}: at rest the link reads {link_rad:+.4f} rad and the motor "
+        f"{motor_rad:+.4f} rad; they disagree by {deflection:+.4f} rad, more than [safety] "
+        f"zero_offset_margin_rad = {margin} rad: the zero offsets are wrong. Hold the robot at "
+        "its reference pose and run `hil calibrate` (it prints both offsets), or fix "
+        f"[[joint]] {joint.name!r} encoder_offset_rad (= {encoder_fix:.6f} if the motor's zero "
+        f"is right) or motor_offset_rad (= {motor_fix:.6f} if the link encoder's is right)"
+    )

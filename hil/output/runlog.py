@@ -6,7 +6,13 @@ A run directory holds:
     log.csv       one row per tick (columns below), line-buffered: on disk when the row is done
     events.jsonl  supervisor events (faults, safe states, exits), one JSON object per line
     summary.json  metrics and how the run ended (written at the end, even after an error)
-    timing.csv    compute time per tick (kept out of log.csv, so lock-step logs are reproducible)
+    timing.csv    compute time per tick (kept out of log.csv, so lock-step logs are reproducible):
+                  bus read, controller + supervisor + write, and (log_s) writing the tick's
+                  log row and messages
+    run.mcap      (unless turned off) every one of these as JSON channels for Foxglove and
+                  PlotJuggler (hil/output/channels.py, hil/output/mcap_log.py)
+
+Further message sinks (the live view, hil/output/live.py) get the same encoded messages.
 
 Columns of log.csv: once per row `tick time_s <sensors> supervisor_state phase skipped_ticks`,
 then per joint (suffix `[name]` when there is more than one joint) the PER_JOINT_COLUMNS, then
@@ -23,11 +29,15 @@ from __future__ import annotations
 import csv
 import json
 import math
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from hil.output import channels as ch
+from hil.output.channels import Channel, ChannelSet, MessageSink, encode, encode_document
 
 PER_JOINT_COLUMNS = (
     "reference_rad",
@@ -80,7 +90,11 @@ class RunLog:
         joint_names: Sequence[str],
         meta: dict[str, Any],
         sensor_columns: Sequence[str] = DEFAULT_SENSOR_COLUMNS,
+        *,
+        mcap: bool = False,
+        sinks: Sequence[MessageSink] = (),
     ) -> None:
+        """mcap: also write run.mcap; sinks: more receivers of the messages (not closed here)."""
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.joint_names = tuple(joint_names)
@@ -99,9 +113,40 @@ class RunLog:
         self._log.writerow(self.columns)
         self._events_file = open(self.dir / "events.jsonl", "w", buffering=1)  # noqa: SIM115
         self._timing_file = open(self.dir / "timing.csv", "w", buffering=1)  # noqa: SIM115
-        self._timing_file.write("tick,read_s,compute_s,write_s,cycle_s\n")
+        self._timing_file.write("tick,read_s,compute_s,write_s,cycle_s,log_s\n")
         self.rows = 0
         self.closed = False
+        self._open_sinks(meta, mcap, sinks)
+
+    # --- message sinks (run.mcap, the live view) ----------------------------------------------
+    def _open_sinks(self, meta: dict[str, Any], mcap: bool, sinks: Sequence[MessageSink]) -> None:
+        self.channels = ChannelSet(self.joint_names, PER_JOINT_COLUMNS, self.sensor_columns)
+        self.mcap = None
+        if mcap:
+            from hil.output.mcap_log import MCAP_NAME, McapSink
+
+            self.mcap = McapSink(self.dir / MCAP_NAME)
+        self._sinks: list[MessageSink] = [*([self.mcap] if self.mcap else []), *sinks]
+        for sink in self._sinks:
+            for channel in self.channels.channels:
+                sink.add_channel(channel)
+        self._start_ns = time.time_ns()
+        self._last_ns = self._start_ns
+        self.publish(self.channels.meta, 0.0, encode_document(meta))
+        if self.mcap is not None:
+            self.mcap.metadata("run_meta", meta)
+
+    def publish(self, channel: Channel, time_s: float, data: bytes) -> None:
+        """One encoded message to every sink, at the run's time `time_s` (the hook for further
+        channels, e.g. frame transforms: add them to `channels` before the first message)."""
+        log_time_ns = self._start_ns + round(time_s * 1e9)
+        self._last_ns = max(self._last_ns, log_time_ns)
+        for sink in self._sinks:
+            sink.message(channel.id, log_time_ns, data)
+
+    def _publish_row(self, row: dict[str, Any], joints: dict[str, Any], time_s: float) -> None:
+        self.publish(self.channels.joints, time_s, encode(joints))
+        self.publish(self.channels.loop, time_s, encode(row))
 
     def write_row(
         self,
@@ -136,22 +181,69 @@ class RunLog:
         row[i + 1] = format_value(measured_period_s)
         self._log.writerow(row)
         self.rows += 1
+        if self._sinks:
+            head = {"tick": int(tick), "time_s": float(time_s)}
+            loop = {
+                **head,
+                **dict(zip(self.sensor_columns, map(float, sensors), strict=True)),
+                "supervisor_state": supervisor_state,
+                "phase": phase,
+                "skipped_ticks": int(skipped_ticks),
+                "slack_s": float(slack_s),
+                "measured_period_s": float(measured_period_s),
+            }
+            per_joint = {c: a.tolist() for c, a in zip(PER_JOINT_COLUMNS, joints, strict=True)}
+            self._publish_row(loop, {**head, **per_joint}, float(time_s))
 
-    def write_timing(self, tick: int, read_s: float, compute_s: float, write_s: float) -> None:
+    def write_timing(
+        self,
+        tick: int,
+        read_s: float,
+        compute_s: float,
+        write_s: float,
+        log_s: float = math.nan,
+        time_s: float = math.nan,
+    ) -> None:
+        """One tick's durations; log_s: writing its log row and messages."""
         cycle = read_s + compute_s + write_s
-        self._timing_file.write(f"{tick},{read_s:.7f},{compute_s:.7f},{write_s:.7f},{cycle:.7f}\n")
+        self._timing_file.write(
+            f"{tick},{read_s:.7f},{compute_s:.7f},{write_s:.7f},{cycle:.7f},{log_s:.7f}\n"
+        )
+        if self._sinks:
+            values = (read_s, compute_s, write_s, log_s, cycle)
+            message = {"tick": int(tick), **dict(zip(ch.TIMING_FIELDS, values, strict=True))}
+            when = time_s if math.isfinite(time_s) else (self._last_ns - self._start_ns) / 1e9
+            self.publish(self.channels.timing, when, encode(message))
 
     def event(self, time_s: float, kind: str, message: str, **fields: Any) -> None:
         record = {"time_s": round(time_s, 6), "kind": kind, "message": message, **fields}
         self._events_file.write(json.dumps(record, default=str) + "\n")
+        if self._sinks:
+            self.publish(self.channels.events, time_s, encode_document(record))
 
     def write_summary(self, summary: dict[str, Any]) -> None:
+        """summary.json; then the summary is the last message: run.mcap is finished."""
         path = self.dir / "summary.json"
         tmp = path.with_suffix(".json.tmp")
         tmp.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
         tmp.replace(path)
+        if self._sinks:
+            self.publish(
+                self.channels.summary, (self._last_ns - self._start_ns) / 1e9,
+                encode_document(summary),
+            )  # fmt: skip
+        if self.mcap is not None:
+            self.mcap.metadata("run_summary", json.loads(json.dumps(summary, default=json_default)))
+        self.finish_sinks()
+
+    def finish_sinks(self) -> None:
+        """run.mcap finished (its index written); later messages go to the CSV files only."""
+        if self.mcap is not None:
+            self.mcap.close()
+        self._sinks = []
 
     def close(self) -> None:
+        """Close the CSV and JSON files (run.mcap stays open for the summary: `finish_sinks`)."""
         if self.closed:
             return
         self.closed = True
@@ -163,6 +255,7 @@ class RunLog:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+        self.finish_sinks()
 
 
 def json_default(value: Any) -> Any:

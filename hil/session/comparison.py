@@ -32,6 +32,7 @@ from hil.experiments import (
 )
 from hil.loop import StopFlag
 from hil.output.plots import ComparisonRun
+from hil.output.progress import Progress
 from hil.output.records import RunEntry
 from hil.output.report import Report, ReportContent, write_report
 from hil.output.rundir import load_run, timestamp, unique_dir
@@ -92,29 +93,17 @@ def run_comparison(
     base = session.config.changed("safety", current_guard=current_guard)
     root = unique_dir(session.out_root / f"{timestamp()}-comparison")
     plan = comparison_plan(base.controller.composition, long_runs=long_runs)
-    entries: list[RunEntry] = []
     started = time.perf_counter()
-    incomplete: str | None = None
     session.config = base
-    for number, (experiment, choice) in enumerate(plan, start=1):
-        if stop is not None and stop.reason is not None:
-            incomplete = f"interrupted: {stop.reason}"
-            break
-        session.say(f"[{number}/{len(plan)}] {experiment.name}: {choice.label}")
-        result = session.run_one(
-            experiment,
-            choice,
-            faults=faults,
-            overruns=overruns,
-            out_dir=root / f"{experiment.name}-{choice.dir_name}",
-            print_result=False,
-            stop=stop,
-        )
-        entries.append(RunEntry(experiment.name, choice, result))
-        if not result.termination.ran_its_course:
-            incomplete = incomplete or f"{experiment.name} / {choice.label}: {result.ending}"
-            if result.termination is Termination.INTERRUPTED:
-                break
+    bar = Progress(
+        len(plan), unit="runs", desc="comparison", enabled=False if session.quiet else None
+    )
+    session.progress = bar
+    try:
+        entries, incomplete = _run_plan(session, plan, root, faults, overruns, stop, bar)
+    finally:
+        bar.close()
+        session.progress = None
     report = write_comparison_report(
         root, entries, session.description, time.perf_counter() - started
     )
@@ -125,6 +114,47 @@ def run_comparison(
     if incomplete is not None:
         print(f"comparison incomplete: {incomplete}")
     return ComparisonOutcome(root, report, incomplete)
+
+
+def _run_plan(
+    session: Session,
+    plan: list[tuple[Experiment, ControllerChoice]],
+    root: Path,
+    faults: tuple[FaultEvent, ...],
+    overruns: tuple[tuple[float, float], ...],
+    stop: StopFlag | None,
+    bar: Progress,
+) -> tuple[list[RunEntry], str | None]:
+    """The runs of the plan in order; a bar with an ETA on a terminal, "[n/N] ..." lines
+    otherwise."""
+    entries: list[RunEntry] = []
+    incomplete: str | None = None
+    for number, (experiment, choice) in enumerate(plan, start=1):
+        if stop is not None and stop.reason is not None:
+            incomplete = f"interrupted: {stop.reason}"
+            break
+        what = f"[{number}/{len(plan)}] {experiment.name}: {choice.label}"
+        session.progress_done = number - 1
+        if bar.enabled:
+            bar.update_to(number - 1, what)
+        else:
+            session.say(what)
+        result = session.run_one(
+            experiment,
+            choice,
+            faults=faults,
+            overruns=overruns,
+            out_dir=root / f"{experiment.name}-{choice.dir_name}",
+            print_result=False,
+            stop=stop,
+        )
+        entries.append(RunEntry(experiment.name, choice, result))
+        bar.update_to(number)
+        if not result.termination.ran_its_course:
+            incomplete = incomplete or f"{experiment.name} / {choice.label}: {result.ending}"
+            if result.termination is Termination.INTERRUPTED:
+                break
+    return entries, incomplete
 
 
 def write_comparison_report(

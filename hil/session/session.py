@@ -28,7 +28,9 @@ from drivers.joint_bus import JointBus
 from hil.config import Config
 from hil.experiments import Experiment
 from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, run_experiment
+from hil.output.channels import MessageSink
 from hil.output.plots import plot_run
+from hil.output.progress import Progress
 from hil.output.records import RunResult
 from hil.output.rundir import load_run, timestamp, unique_dir
 from hil.output.versions import package_versions
@@ -80,6 +82,12 @@ class Session:
     plots: bool = True
     json_output: bool = False
     quiet: bool = False
+    mcap: bool = True  # run.mcap beside the CSV log
+    # A bar over several runs (the comparison): lines go above it, a run's progress moves it
+    # from `progress_done` (runs finished) towards the next whole run.
+    progress: Progress | None = None
+    progress_done: float = 0.0
+    sinks: tuple[MessageSink, ...] = ()  # the live view (`hil run --live`), owned by the caller
 
     @property
     def description(self) -> str:
@@ -92,7 +100,11 @@ class Session:
         return "hardware " + ", ".join(d.port for d in self.config.dynamixel)
 
     def say(self, text: str) -> None:
-        if not self.quiet:
+        if self.quiet:
+            return
+        if self.progress is not None:
+            self.progress.write(text)
+        else:
             print(text, file=sys.stderr, flush=True)
 
     @contextlib.contextmanager
@@ -182,6 +194,8 @@ class Session:
             reboot_first=reboot_first,
             on_event=None if self.quiet else self.say,
             on_progress=self._progress(choice.label),
+            mcap=self.mcap,
+            sinks=self.sinks,
         )
         clock = self.clock()
         self.say(
@@ -203,7 +217,10 @@ class Session:
 
     def _progress(self, label: str) -> Callable[[float, float], None]:
         def report(time_s: float, total_s: float) -> None:
-            if not self.quiet and sys.stderr.isatty():
+            if self.progress is not None:
+                fraction = min(time_s / total_s, 1.0) if total_s > 0 else 0.0
+                self.progress.update_to(self.progress_done + fraction, label)
+            elif not self.quiet and sys.stderr.isatty():
                 print(f"\r  {label}: {time_s:5.1f} / {total_s:.1f} s", end="", file=sys.stderr)
                 if time_s + 1.0 > total_s:
                     print(file=sys.stderr)

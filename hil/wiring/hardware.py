@@ -116,8 +116,12 @@ def _channel_config(config: Config, channel: str, connection: Connection) -> Can
     return CanChannelConfig(channel, dict(connection.can[channel]), encoders, force, wrenches)
 
 
-def bus_config(config: Config, connection: Connection) -> DynamixelCanBusConfig:
-    """The drivers' configuration of the whole bus; ValueError from a driver names the device."""
+def bus_config(
+    config: Config, connection: Connection, *, read_only: bool = False
+) -> DynamixelCanBusConfig:
+    """The drivers' configuration of the whole bus; ValueError from a driver names the device.
+
+    read_only: a bus that writes nothing to the actuators (`hil monitor`, `hil calibrate`)."""
     return DynamixelCanBusConfig(
         joint_names=config.joint_names,
         chains=tuple(_chain_config(config, d.name, connection) for d in config.dynamixel),
@@ -127,14 +131,19 @@ def bus_config(config: Config, connection: Connection) -> DynamixelCanBusConfig:
             if connection.lockstep
             else config.loop.bus_read_timeout_ms / 1000.0
         ),
+        read_only=read_only,
     )
 
 
 def make_bus(
-    config: Config, connection: Connection, clock: Callable[[], float] | None = None
+    config: Config,
+    connection: Connection,
+    clock: Callable[[], float] | None = None,
+    *,
+    read_only: bool = False,
 ) -> DynamixelCanBus:
     try:
-        bus_cfg = bus_config(config, connection)
+        bus_cfg = bus_config(config, connection, read_only=read_only)
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
     return DynamixelCanBus(bus_cfg, clock=clock or time.monotonic)

@@ -20,6 +20,7 @@ from drivers.joint_bus import (
     BusError,
     BusFault,
     DeviceRole,
+    Diagnostic,
     JointBus,
     JointDevices,
     JointSample,
@@ -32,9 +33,40 @@ from sim_backend.direct import DirectTestbed
 from sim_backend.scenario import FaultEvent
 from sim_backend.spec import EmulatorSpec
 
+INPUT_VOLTAGE_V_PER_UNIT = 0.1  # Present Input Voltage (623) is in 0.1 V (e-Manual H54)
+
+
+class _Remount:
+    """From the emulated devices' mounting (the spec) to the one the configuration assumes.
+
+    DirectTestbed reports angles in the joint frame of the emulator's own mounting; the drivers
+    read the device with the configuration's (q = d (r - o)). When the two differ (a robot whose
+    configuration is not calibrated), the device reading r = o_spec + d_spec q_spec is read with
+    the configuration's: q = d_cfg (r - o_cfg); rates only change sign (d_cfg d_spec)."""
+
+    def __init__(self, spec_d: list[int], spec_o: list[float], d: list[int], o: list[float]):
+        self.same = spec_d == d and spec_o == o
+        self.spec_d, self.spec_o = np.array(spec_d, dtype=float), np.array(spec_o)
+        self.d, self.o = np.array(d, dtype=float), np.array(o)
+
+    def angle(self, spec_frame: np.ndarray) -> np.ndarray:
+        if self.same:
+            return spec_frame
+        return self.d * (self.spec_o + self.spec_d * spec_frame - self.o)
+
+    def rate(self, spec_frame: np.ndarray) -> np.ndarray:
+        return spec_frame if self.same else self.d * self.spec_d * spec_frame
+
+    def to_spec(self, i: int, angle: float) -> float:
+        if self.same:
+            return angle
+        device = self.o[i] + self.d[i] * angle
+        return float(self.spec_d[i] * (device - self.spec_o[i]))
+
 
 class InProcessJointBus(JointBus):
-    """See the module docstring. Build with `in_process_bus(config, experiment, faults)`."""
+    """See the module docstring. Build with `in_process_bus(config, experiment, faults)`; a
+    spec built from another configuration emulates devices mounted otherwise (`_Remount`)."""
 
     def __init__(self, config: Config, spec: EmulatorSpec) -> None:
         self.config = config
@@ -43,6 +75,19 @@ class InProcessJointBus(JointBus):
         self.testbed: DirectTestbed | None = None
         self._min = np.array([j.min_angle_rad for j in config.joints])
         self._max = np.array([j.max_angle_rad for j in config.joints])
+        joints, emulated = config.joints, spec.joints
+        self._motor = _Remount(
+            [j.motor_direction for j in emulated],
+            [j.motor_offset_rad for j in emulated],
+            [j.motor_direction for j in joints],
+            [j.motor_offset_rad for j in joints],
+        )
+        self._link = _Remount(
+            [j.encoder_direction for j in emulated],
+            [j.encoder_offset_rad for j in emulated],
+            [j.encoder_direction for j in joints],
+            [j.encoder_offset_rad for j in joints],
+        )
         self.reads = 0
         self.closed = False
 
@@ -70,13 +115,13 @@ class InProcessJointBus(JointBus):
         self.reads += 1
         reading = testbed.read()
         sample = JointSample.empty(self.n_joints, timestamp_s=testbed.time_s)
-        sample.motor_angle_rad[:] = reading.motor_angle_rad
-        sample.motor_velocity_rad_s[:] = reading.motor_velocity_rad_s
-        sample.motor_current_a[:] = reading.motor_current_a
+        sample.motor_angle_rad[:] = self._motor.angle(reading.motor_angle_rad)
+        sample.motor_velocity_rad_s[:] = self._motor.rate(reading.motor_velocity_rad_s)
+        sample.motor_current_a[:] = self._motor.rate(reading.motor_current_a)
         sample.fault_code[:] = reading.hardware_error
         sample.torque_enabled[:] = reading.torque_enabled
         sample.motor_valid[:] = reading.motor_valid
-        sample.link_angle_rad[:] = reading.link_angle_rad
+        sample.link_angle_rad[:] = self._link.angle(reading.link_angle_rad)
         sample.link_valid[:] = reading.link_valid
         sample.link_age_s[:] = np.where(reading.link_valid, 0.0, np.inf)
         devices = self.devices()
@@ -97,7 +142,19 @@ class InProcessJointBus(JointBus):
                 add_wrench(sample.extra, sensor.name, np.full(3, np.nan), np.full(3, np.nan))
             else:
                 add_wrench(sample.extra, sensor.name, *wrench)
+        self._diagnostics(testbed, sample)
         return sample
+
+    def _diagnostics(self, testbed: DirectTestbed, sample: JointSample) -> None:
+        """Temperature and input voltage from the control table, as the chain reads them."""
+        temperature = np.full(self.n_joints, np.nan)
+        voltage = np.full(self.n_joints, np.nan)
+        for i, device in enumerate(testbed.robot.devices):
+            if sample.motor_valid[i]:
+                temperature[i] = device.item("Present Temperature")
+                voltage[i] = device.item("Present Input Voltage") * INPUT_VOLTAGE_V_PER_UNIT
+        sample.diagnostics[Diagnostic.ACTUATOR_TEMPERATURE_C] = temperature
+        sample.diagnostics[Diagnostic.ACTUATOR_INPUT_VOLTAGE_V] = voltage
 
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:
         testbed = self._require()
@@ -106,7 +163,7 @@ class InProcessJointBus(JointBus):
         if goal.shape != self._min.shape or bad.any():
             raise ValueError(f"goal position refused, nothing sent: {goal.tolist()}")
         for i, value in enumerate(goal.tolist()):
-            testbed.write_goal(i, value)
+            testbed.write_goal(i, self._motor.to_spec(i, value))
 
     # --- torque ----------------------------------------------------------------------------
     def enable(self) -> None:

@@ -30,6 +30,7 @@ HIL_LAYERS = {
         "hil.wiring",
     },
     "hil.identify": {"hil.vocabulary", "hil.output"},
+    "hil.bringup": {"hil.vocabulary", "hil.config"},
     "hil.session": {
         "hil.vocabulary",
         "hil.config",
@@ -58,6 +59,7 @@ HIL_LAYERS = {
         "hil.session",
         "hil.bench",
         "hil.identify",
+        "hil.bringup",
     },
 }
 

@@ -1,0 +1,69 @@
+"""run.mcap: the run log's channels (hil/output/channels.py) in an MCAP file, beside the CSV.
+
+Written with the `mcap` library's writer, uncompressed, in chunks of CHUNK_SIZE_BYTES (each
+chunk is written to disk when full, so a crash loses at most one chunk; the CSV files are
+line-buffered and stay the complete record). The run's metadata and summary are also MCAP
+Metadata records ("run_meta", "run_summary": top-level keys, values as JSON text), which
+`mcap info` and Foxglove's metadata panel show.
+
+Cost on the tick path: the JSON encoding of the tick's messages (shared with the live view)
+and `Writer.add_message` for each; `hil bench log` measures it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+
+from hil.output.channels import Channel
+
+MCAP_NAME = "run.mcap"
+CHUNK_SIZE_BYTES = 256 * 1024  # a full chunk is written in well under a millisecond
+PROFILE = ""  # JSON messages follow no ROS profile
+
+
+class McapSink:
+    """A MessageSink writing one MCAP file."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._writer = Writer(
+            self._file, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE
+        )
+        self._writer.start(profile=PROFILE, library="flexjoint-hil")
+        self._ids: dict[int, int] = {}
+        self._sequence: dict[int, int] = {}
+        self.closed = False
+
+    def add_channel(self, channel: Channel) -> None:
+        schema_id = self._writer.register_schema(
+            channel.schema_name, SchemaEncoding.JSONSchema, channel.schema_bytes
+        )
+        self._ids[channel.id] = self._writer.register_channel(
+            channel.topic, MessageEncoding.JSON, schema_id, channel.metadata
+        )
+        self._sequence[channel.id] = 0
+
+    def message(self, channel_id: int, log_time_ns: int, data: bytes) -> None:
+        sequence = self._sequence[channel_id]
+        self._sequence[channel_id] = sequence + 1
+        self._writer.add_message(self._ids[channel_id], log_time_ns, data, log_time_ns, sequence)
+
+    def metadata(self, name: str, document: dict[str, Any]) -> None:
+        self._writer.add_metadata(
+            name, {str(k): json.dumps(v, default=str) for k, v in document.items()}
+        )
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._writer.finish()
+        finally:
+            self._file.close()
