@@ -51,7 +51,11 @@ POSITION_MODE, EXTENDED_POSITION_MODE, VELOCITY_MODE, TORQUE_MODE = 3, 4, 1, 0
 
 
 class ControlTable(Protocol):
-    """The firmware's view of its control table (sim_backend.dynamixel.H54Device provides it)."""
+    """The firmware's view of its control table (sim_backend.dynamixel.H54Device provides it).
+
+    `revision` changes whenever anything but the firmware's own measurements is written: the
+    firmware decodes its registers again only then (it runs every physics step, 12 times over on
+    the humanoid). `set_measurements` writes the Present* items in one go."""
 
     def item(self, name: str) -> int: ...
 
@@ -61,6 +65,40 @@ class ControlTable(Protocol):
 
     @property
     def torque_enabled(self) -> bool: ...
+
+    @property
+    def revision(self) -> int: ...
+
+    def set_measurements(self, measurements: Measurements) -> None: ...
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """The Present* items the firmware writes after each physics step [device units]."""
+
+    moving: int
+    position_pulses: int
+    velocity_units: int
+    current_units: int
+    input_voltage_decivolts: int
+    temperature_c: int
+
+
+@dataclass(frozen=True)
+class _Registers:
+    """The firmware's inputs decoded from the control table (SI), valid for one revision."""
+
+    position_gain_per_s: float
+    velocity_gain_nms_per_rad: float
+    integral_rate_nm_per_rad: float
+    current_cap_a: float
+    speed_cap_rad_s: float
+    goal_angle_rad: float
+    goal_velocity_rad_s: float
+    goal_torque_a: float
+    operating_mode: int
+    homing_offset_pulses: int
+    moving_threshold_rad_s: float
 
 
 @dataclass(frozen=True)
@@ -127,49 +165,68 @@ class H54Firmware:
         self.integral_nm = 0.0
         self.overload_timer_s = 0.0
         self.last_current_a = 0.0
+        self._registers_cache: tuple[int, _Registers] | None = None
 
     def on_reboot(self) -> None:
         self.integral_nm = 0.0
         self.overload_timer_s = 0.0
 
-    # --- gains from registers ----------------------------------------------------------------
-    def _position_gain(self) -> float:
-        p = self.params
-        return (
-            p.position_gain_per_s
-            * self.table.item("Position P Gain")
-            / (p.default_position_gain_register)
+    # --- gains and goals from registers ----------------------------------------------------
+    @property
+    def registers(self) -> _Registers:
+        """The control table's registers in SI, decoded again only after a write."""
+        revision = self.table.revision
+        cached = self._registers_cache
+        if cached is None or cached[0] != revision:
+            cached = (revision, self._decode_registers())
+            self._registers_cache = cached
+        return cached[1]
+
+    def _decode_registers(self) -> _Registers:
+        p, item = self.params, self.table.item
+        goal_torque, torque_limit = item("Goal Torque"), item("Torque Limit")
+        current_units = abs(goal_torque) if 0 < abs(goal_torque) <= torque_limit else torque_limit
+        goal_velocity, velocity_limit = item("Goal Velocity"), item("Velocity Limit")
+        speed_units = (
+            abs(goal_velocity) if 0 < abs(goal_velocity) <= velocity_limit else velocity_limit
         )
+        homing_offset = item("Homing Offset")
+        return _Registers(
+            position_gain_per_s=p.position_gain_per_s
+            * item("Position P Gain")
+            / p.default_position_gain_register,
+            velocity_gain_nms_per_rad=p.velocity_gain_nms_per_rad
+            * item("Velocity P Gain")
+            / p.default_velocity_p_gain_register,
+            # kv / Ti in N m per rad (torque added per radian of integrated speed error)
+            integral_rate_nm_per_rad=p.velocity_gain_nms_per_rad
+            / p.velocity_integral_time_s
+            * item("Velocity I Gain")
+            / p.default_velocity_i_gain_register,
+            current_cap_a=current_units * AMPERE_PER_CURRENT_UNIT,
+            speed_cap_rad_s=speed_units * RAD_S_PER_VELOCITY_UNIT,
+            goal_angle_rad=(item("Goal Position") + homing_offset) * RAD_PER_PULSE,
+            goal_velocity_rad_s=goal_velocity * RAD_S_PER_VELOCITY_UNIT,
+            goal_torque_a=goal_torque * AMPERE_PER_CURRENT_UNIT,
+            operating_mode=item("Operating Mode"),
+            homing_offset_pulses=homing_offset,
+            moving_threshold_rad_s=item("Moving Threshold") * RAD_S_PER_VELOCITY_UNIT,
+        )
+
+    def _position_gain(self) -> float:
+        return self.registers.position_gain_per_s
 
     def velocity_gain(self) -> float:
-        p = self.params
-        return (
-            p.velocity_gain_nms_per_rad
-            * self.table.item("Velocity P Gain")
-            / (p.default_velocity_p_gain_register)
-        )
-
-    def _integral_rate(self) -> float:
-        """kv / Ti in N m per rad (torque added per radian of integrated speed error)."""
-        p = self.params
-        nominal = p.velocity_gain_nms_per_rad / p.velocity_integral_time_s
-        return nominal * self.table.item("Velocity I Gain") / p.default_velocity_i_gain_register
+        return self.registers.velocity_gain_nms_per_rad
 
     def current_cap_a(self) -> float:
-        goal_torque = abs(self.table.item("Goal Torque"))
-        limit = self.table.item("Torque Limit")
-        units = goal_torque if 0 < goal_torque <= limit else limit
-        return units * AMPERE_PER_CURRENT_UNIT
+        return self.registers.current_cap_a
 
     def speed_cap_rad_s(self) -> float:
-        goal_velocity = abs(self.table.item("Goal Velocity"))
-        limit = self.table.item("Velocity Limit")
-        units = goal_velocity if 0 < goal_velocity <= limit else limit
-        return units * RAD_S_PER_VELOCITY_UNIT
+        return self.registers.speed_cap_rad_s
 
     def goal_angle_rad(self) -> float:
-        pulses = self.table.item("Goal Position") + self.table.item("Homing Offset")
-        return pulses * RAD_PER_PULSE
+        return self.registers.goal_angle_rad
 
     # --- one physics step --------------------------------------------------------------------
     def compute(
@@ -179,25 +236,27 @@ class H54Firmware:
         if not self.table.torque_enabled:
             self.integral_nm = 0.0
             return ServoOutput(False, 0.0, 0.0)
-        torque_cap = self.current_cap_a() * self.params.torque_constant_nm_per_a
-        kv = self.velocity_gain()
-        mode = self.table.item("Operating Mode")
+        registers = self.registers
+        torque_cap = registers.current_cap_a * self.params.torque_constant_nm_per_a
+        kv = registers.velocity_gain_nms_per_rad
+        mode = registers.operating_mode
         if mode in (POSITION_MODE, EXTENDED_POSITION_MODE):
-            speed_cap = self.speed_cap_rad_s()
-            position_error = self.goal_angle_rad() - motor_angle_rad
-            speed_command = max(-speed_cap, min(speed_cap, self._position_gain() * position_error))
+            speed_cap = registers.speed_cap_rad_s
+            position_error = registers.goal_angle_rad - motor_angle_rad
+            speed_command = max(
+                -speed_cap, min(speed_cap, registers.position_gain_per_s * position_error)
+            )
         elif mode == VELOCITY_MODE:
-            speed_command = self.table.item("Goal Velocity") * RAD_S_PER_VELOCITY_UNIT
+            speed_command = registers.goal_velocity_rad_s
         else:  # torque mode: the current loop follows Goal Torque directly
-            torque = self.table.item("Goal Torque") * AMPERE_PER_CURRENT_UNIT
-            torque *= self.params.torque_constant_nm_per_a
+            torque = registers.goal_torque_a * self.params.torque_constant_nm_per_a
             return ServoOutput(True, motor_velocity_rad_s + torque / kv, torque_cap)
         speed_error = speed_command - motor_velocity_rad_s
         proportional = kv * speed_error
         # Anti-windup: integrate only while the output is not clipped (or is unwinding).
         unclipped = proportional + self.integral_nm
         if abs(unclipped) < torque_cap or (unclipped * speed_error) < 0:
-            self.integral_nm += self._integral_rate() * speed_error * dt_s
+            self.integral_nm += registers.integral_rate_nm_per_rad * speed_error * dt_s
             self.integral_nm = max(-torque_cap, min(torque_cap, self.integral_nm))
         return ServoOutput(True, speed_command + self.integral_nm / kv, torque_cap)
 
@@ -215,31 +274,29 @@ class H54Firmware:
         current_noise_a, velocity_noise_rad_s: this step's measurement noise (the current the
         firmware measures is also what its overload protection sees)."""
         p = self.params
+        registers = self.registers
         current_a = motor_torque_nm / p.torque_constant_nm_per_a + current_noise_a
         self.last_current_a = current_a
-        table = self.table
-        table.set_item(
-            "Present Position",
-            _round_to_int32(motor_angle_rad / RAD_PER_PULSE - table.item("Homing Offset")),
-        )
         measured_velocity = motor_velocity_rad_s + velocity_noise_rad_s
-        table.set_item(
-            "Present Velocity", _round_to_int32(measured_velocity / RAD_S_PER_VELOCITY_UNIT)
+        self.table.set_measurements(
+            Measurements(
+                moving=int(abs(motor_velocity_rad_s) > registers.moving_threshold_rad_s),
+                position_pulses=_round_to_int32(
+                    motor_angle_rad / RAD_PER_PULSE - registers.homing_offset_pulses
+                ),
+                velocity_units=_round_to_int32(measured_velocity / RAD_S_PER_VELOCITY_UNIT),
+                current_units=_clamp_int16(round(current_a / AMPERE_PER_CURRENT_UNIT)),
+                input_voltage_decivolts=round(p.input_voltage_v * 10),
+                temperature_c=round(p.temperature_c),
+            )
         )
-        table.set_item("Present Current", _clamp_int16(round(current_a / AMPERE_PER_CURRENT_UNIT)))
-        table.set_item("Present Temperature", round(p.temperature_c))
-        table.set_item("Present Input Voltage", round(p.input_voltage_v * 10))
-        moving = (
-            abs(motor_velocity_rad_s) > table.item("Moving Threshold") * RAD_S_PER_VELOCITY_UNIT
-        )
-        table.set_item("Moving", int(moving))
         self._run_overload_protection(abs(current_a), dt_s)
 
     def _run_overload_protection(self, current_a: float, dt_s: float) -> None:
         if not self.table.torque_enabled:
             self.overload_timer_s = 0.0
             return
-        near_limit = current_a >= self.params.overload_current_fraction * self.current_cap_a()
+        near_limit = current_a >= self.params.overload_current_fraction * self.registers.current_cap_a
         self.overload_timer_s += dt_s if near_limit else -dt_s
         self.overload_timer_s = max(0.0, self.overload_timer_s)
         if self.overload_timer_s >= self.params.overload_trip_time_s:

@@ -2,9 +2,12 @@
 wall-clock loop's timing.
 
 - controller compute per tick (`step` + `notify_applied`) of all four controllers for 1 and
-  12 joints, interleaved tick by tick;
-- the real-time factor of a lock-step run of the impact experiment with gc+lqr+dob through the
-  emulated buses (`hil.loop.run_experiment`, the loop `hil run` uses): simulated s / wall s;
+  12 joints, interleaved tick by tick (on the humanoid: its 12 legs with the pinocchio gravity
+  compensator, plus the LQR gain's rescheduling, Sm of (19) and the design, which runs off the
+  200 Hz path);
+- the real-time factor of a lock-step run of the impact experiment (the humanoid: stand) with
+  gc+lqr+dob through the emulated buses (`hil.loop.run_experiment`, the loop `hil run` uses):
+  simulated s / wall s;
 - the 200 Hz wall-clock loop (`hil.loop.WallClock`) running the same experiment against the
   emulator in realtime mode: measured period, lateness of each tick's start behind its grid
   time, slack, overruns and skipped ticks.
@@ -35,15 +38,17 @@ from hil.bench.common import (
     with_bench_reply_timeout,
     with_retries,
 )
-from hil.config import Config
-from hil.experiments import IMPACT, Experiment
+from hil.config import Config, robot_of
+from hil.experiments import IMPACT, STAND, Experiment
 from hil.loop import (
+    HumanoidLegs,
     LockstepClock,
     LoopClock,
     RunRequest,
     Tick,
     WallClock,
     build_controller,
+    robot_model,
     run_experiment,
 )
 from hil.output.records import RunResult
@@ -85,18 +90,29 @@ def bench_controllers(
     """
     period_s = base.loop.period_s
     kdist = base.controller.kdist
+    humanoid = robot_of(base) == "dyros-jet"
+    if humanoid:  # the robot's own 12 legs, about its standing posture
+        joint_counts = (len(base.joints),)
+        robot = robot_model(base)
+        posture = np.asarray(STAND.reference(0.0))
     cases: list[tuple[int, str]] = [(n, name) for n in joint_counts for name in names]
     controllers: list[JointController] = []
     build_s: list[float] = []
     inputs: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     total = warmup + ticks
     for n_joints, name in cases:
-        config = config_with_joints(base, n_joints)
         started = time.perf_counter()
-        controller = build_controller(config, ControllerChoice(name, kdist), period_s)
+        choice = ControllerChoice(name, kdist)
+        if humanoid:
+            support = STAND.support(0.0)
+            controller = build_controller(base, choice, period_s, robot, posture, support)
+        else:
+            controller = build_controller(config_with_joints(base, n_joints), choice, period_s)
         build_s.append(time.perf_counter() - started)
         if n_joints not in inputs:
             inputs[n_joints] = _controller_inputs(n_joints, total, period_s)
+            if humanoid:
+                inputs[n_joints] = tuple(a + posture for a in inputs[n_joints])  # type: ignore[assignment]
         motor, link, reference = inputs[n_joints]
         controller.reset(motor[0], link[0], reference[0])
         controllers.append(controller)
@@ -127,6 +143,32 @@ def bench_controllers(
             }
         )
     return results
+
+
+def bench_gain_schedule(base: Config, designs: int = 20) -> dict[str, Any] | None:
+    """The humanoid's LQR rescheduling (off the 200 Hz path): Sm of (19) at a posture, and the
+    gain designed on it; None for a robot whose Sm is constant."""
+    robot = robot_model(base)
+    if not isinstance(robot, HumanoidLegs):
+        return None
+    posture = np.asarray(STAND.reference(0.0))
+    support = STAND.support(0.0)
+    choice = ControllerChoice(LOOP_CONTROLLER, base.controller.kdist)
+    controller = build_controller(base, choice, base.loop.period_s, robot, posture, support)
+    sm_s, design_s = np.empty(designs), np.empty(designs)
+    for k in range(designs):
+        started = time.perf_counter()
+        sm = robot.sm(posture + 0.001 * k, support)
+        sm_s[k] = time.perf_counter() - started
+        started = time.perf_counter()
+        controller.params.design_gain(sm, base.loop.period_s)  # type: ignore[attr-defined]
+        design_s[k] = time.perf_counter() - started
+    return {
+        "sm": dataclasses.asdict(Distribution.of(sm_s)),
+        "design": dataclasses.asdict(Distribution.of(design_s)),
+        "reschedule_period_s": base.model.gain_reschedule_period_s,
+        "sm_coupling": base.model.sm_coupling,
+    }
 
 
 class RecordingClock(LoopClock):
@@ -181,9 +223,14 @@ class _RunRecord:
     latency_timer_ms: float  # the Dynamixel reply timeout's latency term the run used
 
 
+def loop_experiment(base: Config) -> Experiment:
+    """What the loop benches run: the impact experiment, on the humanoid standing."""
+    return STAND if robot_of(base) == "dyros-jet" else IMPACT
+
+
 def _run_impact(base: Config, ticks: int, realtime: bool, out_dir: Path) -> _RunRecord:
-    """The impact experiment with gc+lqr+dob for `ticks` ticks, the way `hil run` runs it."""
-    experiment: Experiment = IMPACT
+    """The loop experiment with gc+lqr+dob for `ticks` ticks, the way `hil run` runs it."""
+    experiment = loop_experiment(base)
     period_s = base.loop.period_s
     clock_kind = EmulatorClock.REALTIME if realtime else EmulatorClock.LOCKSTEP
     spec = emulator_spec(base, experiment=experiment, clock=clock_kind)
@@ -233,7 +280,7 @@ def bench_lockstep_run(
     simulated_s = (started.size - 2) * clock.period_s
     wall_s = float(started[-1] - started[1])
     return {
-        "experiment": IMPACT.name,
+        "experiment": loop_experiment(base).name,
         "controller": str(LOOP_CONTROLLER),
         "kdist": base.controller.kdist,
         "ticks": int(result.ticks),
@@ -268,7 +315,7 @@ def bench_wall_clock(
     inner = clock.inner
     assert isinstance(inner, WallClock)
     return {
-        "experiment": IMPACT.name,
+        "experiment": loop_experiment(base).name,
         "controller": str(LOOP_CONTROLLER),
         "rate_hz": base.loop.rate_hz,
         "ticks": int(result.ticks),
@@ -292,16 +339,18 @@ def run_bench_loop(
     say: Callable[[str], None] = lambda _text: None,
 ) -> dict[str, Any]:
     config = with_bench_reply_timeout(config)
-    say(
-        f"bench loop: {len(CONTROLLER_NAMES)} controllers x {len(joint_counts)} sizes, {ticks} "
-        "ticks interleaved ..."
+    sizes = (
+        "the robot's joints" if robot_of(config) == "dyros-jet" else f"{len(joint_counts)} sizes"
     )
+    say(f"bench loop: {len(CONTROLLER_NAMES)} controllers x {sizes}, {ticks} ticks interleaved ...")
     controllers = bench_controllers(config, ticks, joint_counts=joint_counts)
+    schedule = bench_gain_schedule(config)
+    name = loop_experiment(config).name
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as tmp:
-        say(f"bench loop: lock-step {IMPACT.name} run with {LOOP_CONTROLLER}, {ticks} ticks ...")
+        say(f"bench loop: lock-step {name} run with {LOOP_CONTROLLER}, {ticks} ticks ...")
         lockstep = bench_lockstep_run(config, ticks, Path(tmp) / "lockstep", say)
         say(
-            f"bench loop: wall-clock {config.loop.rate_hz:g} Hz {IMPACT.name} run against the "
+            f"bench loop: wall-clock {config.loop.rate_hz:g} Hz {name} run against the "
             f"realtime emulator, {ticks} ticks ({ticks * config.loop.period_s:g} s) ..."
         )
         wall = bench_wall_clock(config, ticks, Path(tmp) / "wall", say)
@@ -311,6 +360,7 @@ def run_bench_loop(
         "config": config.source,
         "period_s": config.loop.period_s,
         "controllers": controllers,
+        "gain_schedule": schedule,
         "lockstep_run": lockstep,
         "wall_clock_run": wall,
     }
@@ -331,6 +381,15 @@ def loop_report_text(report: dict[str, Any]) -> str:
             f"  {case['p99_s'] * 1e6:>9.1f}  {case['max_s'] * 1e6:>9.1f}  "
             f"{case['build_s'] * 1e3:>10.2f}"
         )
+    schedule = report.get("gain_schedule")
+    if schedule:
+        lines += [
+            f"  LQR rescheduling, every {schedule['reschedule_period_s'] * 1e3:g} ms off the "
+            f"200 Hz path (Sm {schedule['sm_coupling']}), median / p99 / max [ms]: Sm of (19) "
+            + Distribution(**schedule["sm"]).text()
+            + ", gain design "
+            + Distribution(**schedule["design"]).text(),
+        ]
     lock = report["lockstep_run"]
     lines += [
         "",

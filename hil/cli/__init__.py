@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "config":
-        sys.stdout.write(default_config_text())
+        sys.stdout.write(default_config_text(args.robot or "testbed"))
         return ExitCode.OK
     if args.command == "emulate":
         from hil.cli.emulate import cmd_emulate

@@ -27,7 +27,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.seed < 0:
         print(f"hil bench: --seed must be >= 0, got {args.seed}", file=sys.stderr)
         return ExitCode.USAGE
-    config = checked_config(args.config)
+    config = checked_config(args.config, args.robot)
 
     def say(text: str) -> None:
         if not args.json:

@@ -8,7 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from hil.config import Config, ConfigError, load_config
+from hil.config import Config, ConfigError, load_config, robot_of
+from hil.experiments import robot_of_experiment
 from hil.session import ConnectionOverrides
 from hil.wiring import check_devices
 from sim_backend.scenario import EMULATOR_FAULTS, FaultEvent, parse_fault
@@ -16,9 +17,26 @@ from sim_backend.scenario import EMULATOR_FAULTS, FaultEvent, parse_fault
 LOOP_FAULTS = ("overrun",)
 
 
-def checked_config(path: Path | None) -> Config:
-    """The configuration file (or the built-in one), its device figures checked by the drivers."""
-    config = load_config(path)
+def checked_config(
+    path: Path | None, robot: str | None = None, experiment: str | None = None
+) -> Config:
+    """The configuration file (or the built-in one of `robot`, by default the experiment's),
+    its device figures checked by the drivers, its robot the one the experiment is for."""
+    if path is not None and robot is not None:
+        raise ConfigError(
+            f"--robot {robot} picks a built-in configuration; --config {path} names its own "
+            "robot ([model] robot): give one of them"
+        )
+    wanted = robot_of_experiment(experiment) if experiment else None
+    config = (
+        load_config(path) if path is not None else load_config(robot=robot or wanted or "testbed")
+    )
+    if wanted is not None and robot_of(config) != wanted:
+        raise ConfigError(
+            f"experiment {experiment!r} is for the robot {wanted!r}; {config.source} describes "
+            f"{robot_of(config)!r} ([model] robot = {config.model.robot!r})"
+            + (f": drop --robot or use --robot {wanted}" if path is None else "")
+        )
     check_devices(config)
     return config
 

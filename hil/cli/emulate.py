@@ -21,7 +21,7 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     if args.spec_file is not None:  # from `hil run`'s embedded emulator
         spec = spec_from_json(Path(args.spec_file).read_text())
     else:
-        config = checked_config(args.config)
+        config = checked_config(args.config, args.robot, args.experiment)
         if args.seed is not None:
             config = config.changed("emulator", seed=args.seed, option="--seed")
         experiment = get_experiment(args.experiment) if args.experiment else None

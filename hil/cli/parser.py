@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
+from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
 
 BENCH_TARGETS = ("bus", "loop", "soak", "log")
@@ -21,6 +22,14 @@ def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
         "--attach",
         metavar="JSON",
         help="the first line `hil emulate` printed (or a file holding it): use its ports",
+    )
+
+
+def _add_robot(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--robot",
+        choices=sorted(BUILT_IN_CONFIGS),
+        help="the built-in configuration (default: the experiment's robot; testbed otherwise)",
     )
 
 
@@ -49,7 +58,10 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         choices=list(COMPOSITION_READINGS),
         help="reading of the paper's (25) (default: the config's; see controller/composition.py)",
     )
-    run.add_argument("--config", type=Path, help="configuration file (default: built-in testbed)")
+    run.add_argument(
+        "--config", type=Path, help="configuration file (default: the built-in one of --robot)"
+    )
+    _add_robot(run)
     run.add_argument("--emulate", action="store_true", help="emulate the --config hardware")
     run.add_argument("--realtime", action="store_true", help="pace with the wall clock")
     run.add_argument("--out", type=Path, default=Path("runs"), help="output directory root")
@@ -104,6 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     emulate = sub.add_parser("emulate", help="serve the virtual testbed until interrupted")
     emulate.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
+    _add_robot(emulate)
     emulate.add_argument("--realtime", action="store_true", help="wall-clock physics and wire time")
     emulate.add_argument(
         "--experiment",
@@ -134,9 +147,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("--seed", type=int, default=0, help="soak: the faults' random seed")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
+    _add_robot(bench)
 
     _add_bringup(sub)
-    sub.add_parser("config", help="print the sample configuration file")
+    config = sub.add_parser("config", help="print a built-in configuration file (a template)")
+    _add_robot(config)
     return parser
 
 

@@ -27,7 +27,7 @@ _SINGLE_RUN_OPTIONS = (
 
 def _configured(args: argparse.Namespace) -> Config:
     """The configuration with the command line's changes, each validated like the file."""
-    config = checked_config(args.config)
+    config = checked_config(args.config, args.robot, args.experiment)
     if args.composition is not None:
         config = config.changed("controller", composition=args.composition, option="--composition")
     if args.kdist is not None:

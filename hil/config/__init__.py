@@ -16,6 +16,7 @@ from hil.config.load import (
     load_config,
     parse_config,
     robot_description_text,
+    robot_of,
 )
 from hil.config.schema import (
     CanSection,
@@ -47,4 +48,5 @@ __all__ = [
     "load_config",
     "parse_config",
     "robot_description_text",
+    "robot_of",
 ]

@@ -77,6 +77,12 @@ def default_config_text(robot: str = "testbed") -> str:
     return resources.files("hil").joinpath("data", name).read_text()
 
 
+def robot_of(config: Config) -> str:
+    """The built-in configuration's robot name this configuration's model is ("testbed" for
+    single links): what an experiment is checked against."""
+    return "dyros-jet" if config.model.robot == "dyros-jet" else "testbed"
+
+
 def load_config(path: str | Path | None = None, *, robot: str = "testbed") -> Config:
     """Read and check a configuration file; None reads the built-in one of `robot`."""
     if path is None:

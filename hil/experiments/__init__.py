@@ -23,6 +23,12 @@ EXPERIMENTS: dict[str, Experiment] = {
 ROBOT_OF_EXPERIMENT: dict[str, str] = {"stand": "dyros-jet", "push": "dyros-jet"}
 
 
+def robot_of_experiment(name: str | None) -> str:
+    """The built-in robot an experiment runs on ("testbed" for the paper's 1-DoF testbed and
+    for the comparison, name None)."""
+    return ROBOT_OF_EXPERIMENT.get(name, "testbed") if name else "testbed"
+
+
 def get_experiment(name: str) -> Experiment:
     try:
         return EXPERIMENTS[name]
@@ -48,4 +54,5 @@ __all__ = [
     "TestbedExperiment",
     "World",
     "get_experiment",
+    "robot_of_experiment",
 ]

@@ -4,6 +4,8 @@ clock.py               lock-step and wall clocks on a fixed grid
 timeline.py            the phases of a run by tick (hold, homing, experiment, stop)
 start_gate.py          tick 0: refuse to start, or the sample to start from
 homing.py              the slow re-homing after a fault
+robot_model.py         the controller's model of the robot (single links, DYROS-JET's legs)
+gain_scheduler.py      the LQR gain rescheduled with posture and support, off the 200 Hz path
 controller_factory.py  the configured robot model + a controller choice -> a controller
 request.py             what a run is asked to do; Ctrl-C / SIGTERM
 runner.py              the loop itself (`Loop`, `run_experiment`)
@@ -13,6 +15,7 @@ from hil.loop.clock import LockstepClock, LoopClock, Tick, WallClock
 from hil.loop.controller_factory import build_controller, joint_params
 from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import RunRequest, StopFlag
+from hil.loop.robot_model import HumanoidLegs, RobotModel, SingleLinks, robot_model
 from hil.loop.runner import LOST_BUS_ERRORS, Loop, run_experiment
 from hil.loop.start_gate import StartRefused
 from hil.loop.timeline import Phase, Timeline
@@ -20,11 +23,14 @@ from hil.loop.timeline import Phase, Timeline
 __all__ = [
     "LOST_BUS_ERRORS",
     "HomingPlan",
+    "HumanoidLegs",
     "LockstepClock",
     "Loop",
     "LoopClock",
     "Phase",
+    "RobotModel",
     "RunRequest",
+    "SingleLinks",
     "StartRefused",
     "StopFlag",
     "Tick",
@@ -33,5 +39,6 @@ __all__ = [
     "build_controller",
     "joint_params",
     "plan_homing",
+    "robot_model",
     "run_experiment",
 ]

@@ -6,7 +6,8 @@ Four setups, one code path for the loop:
     in_process                            the emulated robot in this process, no buses
                                           (hil.wiring.in_process): lock-step, for tests and
                                           sweeps that need throughput
-    attached (--attach JSON)              a `hil emulate` someone started: wall clock
+    attached (--attach JSON)              a `hil emulate` someone started: lock-step when it
+                                          is (its JSON line says), else wall clock
     hardware (--config FILE [--port ...]) the ports FILE names (or the overrides): wall clock
 """
 
@@ -154,8 +155,16 @@ class Session:
 
     def clock(self) -> LoopClock:
         period = self.config.loop.period_s
+        # an attached lock-step emulator advances one period per SYNC: pacing the loop with
+        # the wall clock there would only count a slow machine's ticks as overruns
+        attached_lockstep = (
+            self.setup is Setup.ATTACHED
+            and (self.attach or {}).get("clock") == EmulatorClock.LOCKSTEP
+        )
         lockstep = self.setup is Setup.IN_PROCESS or (
-            self.setup is Setup.EMBEDDED and not self.realtime
+            self.setup in (Setup.EMBEDDED, Setup.ATTACHED)
+            and not self.realtime
+            and (self.setup is Setup.EMBEDDED or attached_lockstep)
         )
         return LockstepClock(period) if lockstep else WallClock(period)
 

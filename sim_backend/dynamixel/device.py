@@ -44,6 +44,7 @@ Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
 from sim_backend.dynamixel.control_table import (
     BAUD_RATE_BPS,
@@ -60,6 +61,19 @@ from sim_backend.dynamixel.control_table import (
     ControlTableLayout,
 )
 from sim_backend.dynamixel.protocol import ALERT_BIT, ErrorCode, Instruction
+
+if TYPE_CHECKING:
+    from sim_backend.servo import Measurements
+
+# The items `set_measurements` writes, in the order of servo.Measurements' fields.
+_MEASUREMENT_ITEMS = (
+    "Moving",
+    "Present Position",
+    "Present Velocity",
+    "Present Current",
+    "Present Input Voltage",
+    "Present Temperature",
+)
 
 DEFAULT_FIRMWARE_VERSION = 1  # not published for the legacy Pro; any 0..254 is plausible
 DEFAULT_REBOOT_TIME_S = 0.3  # not published; a REBOOT of an X-series takes a few hundred ms
@@ -103,6 +117,9 @@ class H54Device:
         self._registered: tuple[int, bytes] | None = None
         self._reboot_listeners: list[Callable[[], None]] = []
         self._indirect_map: list[int] | None = None  # Indirect Address 1..256, cached
+        # Changes with every write but the firmware's measurements: the firmware re-decodes
+        # its registers only then.
+        self.revision = 0
         # Items that are neither Indirect Data nor Indirect Address: read and written as plain
         # bytes (name -> address, end, size, signed), the fast path of item/set_item.
         self._direct_items: dict[str, tuple[int, int, int, bool]] = {
@@ -111,6 +128,8 @@ class H54Device:
             if not (INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END)
             and not (item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END)
         }
+        self._measured_names = frozenset(item.name for item in layout.items if item.measured)
+        self._measurement_slots = tuple(self._direct_items[name] for name in _MEASUREMENT_ITEMS)
 
         for item in layout.items:
             self._store(item, item.default)
@@ -178,6 +197,8 @@ class H54Device:
 
     def set_item(self, name: str, value: int) -> None:
         """Firmware-side write: no access, range or limit rules (the value must fit the item)."""
+        if name not in self._measured_names:
+            self.revision += 1
         direct = self._direct_items.get(name)
         if direct is not None:
             address, end, size, signed = direct
@@ -192,6 +213,23 @@ class H54Device:
         else:
             self._store(item, value)
 
+    def set_measurements(self, measurements: Measurements) -> None:
+        """Firmware-side: the Present* items after a physics step, in one go (the revision
+        stays: they are not the firmware's inputs)."""
+        table = self._table
+        values = (
+            measurements.moving,
+            measurements.position_pulses,
+            measurements.velocity_units,
+            measurements.current_units,
+            measurements.input_voltage_decivolts,
+            measurements.temperature_c,
+        )
+        for (address, end, size, signed), value in zip(
+            self._measurement_slots, values, strict=True
+        ):
+            table[address:end] = value.to_bytes(size, "little", signed=signed)
+
     def raise_hardware_error(self, bits: int) -> None:
         """OR `bits` into Hardware Error Status (892). Bits also set in Shutdown (48) turn
         torque off and latch the shutdown until REBOOT."""
@@ -200,6 +238,7 @@ class H54Device:
                 f"hardware error bits must be within 0x{HARDWARE_ERROR_BITS_MASK:02X} "
                 f"(bits 7 and 6 are unused), got 0x{bits:X}"
             )
+        self.revision += 1
         self._table[892] |= bits
         if bits & self.item("Shutdown"):
             self._table[562] = 0
@@ -208,6 +247,7 @@ class H54Device:
     def clear_hardware_error(self, bits: int) -> None:
         """Clear bits of Hardware Error Status (a non-latched condition went away). The
         shutdown latch stays: only REBOOT clears it."""
+        self.revision += 1
         self._table[892] &= ~bits & 0xFF
 
     def available(self, now_s: float) -> bool:
@@ -260,6 +300,7 @@ class H54Device:
         """WRITE: all of it or none of it; returns the error number."""
         error, plan = self._plan_write(address, data)
         if error == ErrorCode.NONE:
+            self.revision += 1
             for physical, byte in plan:
                 self._table[physical] = byte
                 if INDIRECT_ADDRESS_BASE <= physical < _INDIRECT_ADDRESS_END:
@@ -324,6 +365,7 @@ class H54Device:
     # ---------------------------------------------------------------- internals
 
     def _store(self, item: ControlItem, value: int) -> None:
+        self.revision += 1
         self._table[item.address : item.end] = item.encode(value)
         if item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END:
             self._indirect_map = None
