@@ -296,7 +296,8 @@ class H54Firmware:
         if not self.table.torque_enabled:
             self.overload_timer_s = 0.0
             return
-        near_limit = current_a >= self.params.overload_current_fraction * self.registers.current_cap_a
+        cap_a = self.registers.current_cap_a
+        near_limit = current_a >= self.params.overload_current_fraction * cap_a
         self.overload_timer_s += dt_s if near_limit else -dt_s
         self.overload_timer_s = max(0.0, self.overload_timer_s)
         if self.overload_timer_s >= self.params.overload_trip_time_s:
