@@ -93,3 +93,14 @@ def test_flat_sole_rotation(model: LegModel) -> None:
         assert np.allclose(sole.rotation, np.eye(3), atol=1e-12)
         assert np.allclose(sole.translation, 0.0, atol=1e-12)
     assert np.isclose(pin.Quaternion(q[3:7]).norm(), 1.0)
+
+
+def test_standing_configuration_leaves_the_frames_at_its_q(model: LegModel) -> None:
+    # the ZMP from the feet's sensors needs the sensors' placement at the standing q, not at the
+    # q before its base was moved under the sole
+    angles = np.deg2rad([0, 2, -15, 35, -20, -2, 0, -2, 15, -35, 20, 2])
+    q = model.standing_configuration(angles, side=1)
+    assert np.allclose(model.sole_placement(1).translation, 0.0, atol=1e-12)
+    sensor = model.ft_sensor_placement(0).translation.copy()
+    model.update_kinematics(q)
+    assert np.allclose(sensor, model.ft_sensor_placement(0).translation, atol=1e-12)

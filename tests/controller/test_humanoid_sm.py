@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -109,16 +108,11 @@ def test_invariant_to_the_base_pose(model: LegModel) -> None:
 
 @pytest.mark.parametrize("coupling", ["full", "diagonal"])
 def test_sm_feeds_the_lqr_design(model: LegModel, coupling: str) -> None:
-    """The LQR gain for 12 joints from this Sm exists and its sampled loop is stable; the time
-    it takes is what the loop must keep off its 200 Hz path (bounds are generous)."""
+    """The LQR gain for 12 joints from this Sm (single support) exists and its sampled loop is
+    stable (what it costs: `hil bench loop --robot dyros-jet`)."""
     projection = ContactProjectedInertia(model)
     params = ControllerParams.paper(12, lqr_coupling=coupling)
-    start = time.perf_counter()
     sm = projection.sm(READY, SupportState.LEFT, SmCoupling(coupling))
-    sm_s = time.perf_counter() - start
-    start = time.perf_counter()
     gain = params.design_gain(sm, 0.005)
-    gain_s = time.perf_counter() - start
     assert gain.n_joints == 12
     assert gain.spectral_radius < 1.0
-    assert sm_s < 0.05 and gain_s < 2.0

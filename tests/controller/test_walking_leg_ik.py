@@ -13,7 +13,6 @@ placements and axes (DYROS-JET URDF, psh117/dyros_jet, BSD-2-Clause (c) 2017 Suh
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pinocchio as pin
@@ -278,20 +277,3 @@ def test_ik_on_a_turning_walk_by_forward_kinematics():
     assert np.abs(pattern.joint_angles_rad[:, [0, 6]]).max() > 0.05  # the hips do yaw
     position, rotation = _fk_errors(pattern)
     assert position < 1e-6 and rotation < 1e-6
-
-
-def test_cost_per_call_fits_the_200_hz_tick():
-    geometry = LegsGeometry.dyros_jet()
-    pelvis_position, pelvis_rotation = np.array([0.05, 0.02, 0.8]), np.eye(3)
-    feet = [
-        (np.array([0.1, 0.127794, 0.13]), np.eye(3)),
-        (np.array([0.0, -0.127794, 0.105]), np.eye(3)),
-    ]
-    n = 2000
-    start = time.perf_counter()
-    for _ in range(n):
-        for leg, (position, rotation) in zip((geometry.left, geometry.right), feet, strict=True):
-            leg_inverse_kinematics(leg, pelvis_position, pelvis_rotation, position, rotation)
-    per_call_s = (time.perf_counter() - start) / n
-    # Measured ~35-40 us for both legs on this machine; a generous bound for shared CI cores.
-    assert per_call_s < 0.5e-3, f"{per_call_s * 1e6:.0f} us for both legs"
