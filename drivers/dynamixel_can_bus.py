@@ -6,12 +6,16 @@ slot each joint uses (the idea of vulp's `ServoLayout`); everything else works p
 
 One tick reads in this order, on hardware and on the emulated testbed alike:
     1. SYNC on every CAN channel: every link encoder latches its position (and a force sensor
-       its force);
-    2. collect the TPDOs that answer each SYNC (bounded wait);
-    3. one Dynamixel sync read of the state block per chain (position, velocity, current,
-       hardware error status, torque enable).
-The encoders answer before the actuators are read because the emulated testbed advances its
-physics on SYNC in lock-step mode; on hardware the two readings are then ~0.5 ms apart.
+       its force) and starts sending its TPDO;
+    2. one Dynamixel sync read of the state block per chain (position, velocity, current,
+       hardware error status, torque enable), while the TPDOs arrive (the CAN adapter buffers
+       them);
+    3. collect the TPDOs that answer each SYNC (bounded wait; usually all there already).
+The CAN frames and the RS-485 packets overlap instead of adding up: with twelve joints, the
+TPDOs take ~1.8 ms at 1 Mbit/s and the sync read ~0.5 ms at 3 Mbit/s plus the USB adapter's
+latency (docs/humanoid.md, "the tick budget"). The emulated robot in lock-step advances its
+physics on the SYNC and answers the sync read only after it (it reads CAN first), so the
+motor and link readings are of the same instant there; on hardware they are < 1 ms apart.
 `write()` is one Dynamixel sync write of the goal positions per chain.
 """
 
@@ -199,8 +203,8 @@ class DynamixelCanBus(JointBus):
         try:
             for reader in self.readers:
                 reader.send_sync()
-            links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
             motors = [chain.read_state() for chain in self.chains]
+            links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
         except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
             raise BusError(f"the bus failed while reading: {exc}") from exc
         sample.timestamp_s = links[0].sync_time_s
