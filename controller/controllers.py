@@ -93,7 +93,9 @@ class ControllerParams:
     discretisation: the LQR design, "zoh" (default), "euler" (the lab's) or "continuous-cost"
         (the paper's cost (22) over each tick); the DOB's Pn^-1 is Euler with "euler", ZOH
         otherwise (`controller.lqr.servo_discretisation`).
-    lqr_coupling: "full" (whole Sm, default) or "diagonal" (the lab's: diagonal of Sm only).
+    lqr_coupling: "full" (whole Sm, default), "diagonal" (the lab's: diagonal of Sm only) or
+        "closed-chain" (whole Sm, on the motions a closed chain allows: double support; see
+        controller/lqr.py).
     link_velocity_cutoff_hz: None = plain backward difference (default), else a low pass.
     link_velocity_increment: "backward-difference" (default) or "zero" (the lab's); see
         controller/estimation.py.

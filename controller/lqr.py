@@ -61,6 +61,26 @@ Why not the continuous gain itself at 200 Hz: its fastest closed-loop pole lies 
 duc(k) = dt * duc/dt it is unstable (spectral radius 2.99 with Qx = I, 13.0 with Q = 10 I on all
 states, tests/test_controller_closed_loop.py). The continuous design stays for analysis.
 
+Closed kinematic chains (coupling "closed-chain"). With both feet on the ground Sm of (19) is
+singular: DYROS-JET's legs have 18 velocities and 12 contact constraints, so Sm (12 x 12) has
+rank 6 (walking-ready posture: eigenvalues 3.33, 2.38, 1.69, 1.50, 0.101, 0.038 and six zeros).
+In its null space no joint torque moves a link; there (20) carries link states without dynamics
+and the augmented error of (21) is an integrator no input reaches, so "full" has no stabilising
+DARE. "diagonal" (the lab's) runs anyway, and on the coupled plant it (a) integrates whatever
+part of the error lies in that null space (encoder offsets, contact compliance, the reference's
+closure) into goals that ramp while the links stay (Jordan blocks at z = 1: internal forces
+grow), and (b) designs each joint on 1 / Sm_ii, the inertia it would drive if every other joint
+were limp; in the chain the others hold, and the sagittal sway mode is unstable (z = 1.0043 at
+3.4 Hz with the paper's servo model; tests/controller/test_lqr_closed_chain.py).
+"closed-chain" designs on the chain's own coordinates: V (n x r) an orthonormal basis of the
+range of Sm (`motion_subspace`), theta_j = V xi, state [theta_m (n); xi (r); dxi/dt (r)]
+(`closed_chain_state_space`, exact: that subspace is invariant under (20)), error V'e. For every
+motion the chain allows, xi'xi = theta_j'theta_j, so the cost is the paper's (22) on the motions
+the robot can make; V'e = 0 is reachable (the link goes to the closure-consistent posture
+nearest to the reference), the rest of the error is left to the springs. The gain maps back to
+[e; dx] as n x 4n, error gain K_e V'. With a nonsingular Sm (one foot, the testbed) it is the
+"full" design.
+
 Weights. The paper (Sec. IV-A): "Q and R ... are the diagonal matrix of 10 and 1". We read it
 as the lab's code does: Qe = 10 I on the error, Qx = 1 I on the state increments, R = 1 I
 (`LqrWeights()` defaults). The other reading, Q = 10 I on all 4n states, is
@@ -79,12 +99,13 @@ import scipy.linalg
 from controller.model import (
     Discretisation,
     FlexibleJointParams,
+    StateSpace,
     discretise,
     flexible_joint_state_space,
     validate_sm,
 )
 
-Coupling = Literal["full", "diagonal"]
+Coupling = Literal["full", "diagonal", "closed-chain"]
 COUPLINGS: tuple[str, ...] = get_args(Coupling)
 LqrDesign = Literal["euler", "zoh", "continuous-cost"]
 LQR_DESIGNS: tuple[str, ...] = get_args(LqrDesign)
@@ -354,11 +375,26 @@ def _design_discrete_coupled(
     dt_s: float,
     weights: LqrWeights,
     design: LqrDesign,
+    continuous: StateSpace | None = None,
 ) -> tuple[np.ndarray, float]:
-    """Gain per tick on [e; dx] and the designed loop's spectral radius."""
+    """Gain per tick on [e; dx] and the designed loop's spectral radius.
+
+    continuous: the model to design on (default (20) with this Sm); the closed-chain design
+    passes (20) restricted to the chain's motion subspace, with its own error and state sizes.
+    """
     n = params.n_joints
-    q, r = weights.matrices(n)
-    continuous = flexible_joint_state_space(params, sm)
+    if continuous is None:
+        continuous = flexible_joint_state_space(params, sm)
+    n_errors, n_states = continuous.c.shape
+    q = np.diag(
+        np.concatenate(
+            [
+                np.full(n_errors, weights.tracking_error_weight),
+                np.full(n_states, weights.state_increment_weight),
+            ]
+        )
+    )
+    r = weights.input_increment_weight * np.eye(n)
     if design == "continuous-cost":
         a_bar, b_bar = augmented_continuous(continuous.a, continuous.b, continuous.c)
         cost = sample_quadratic_cost(a_bar, b_bar, q, r, dt_s)
@@ -367,13 +403,85 @@ def _design_discrete_coupled(
         )
         # w = duc/dt on [e; dx/dt]  ->  duc(k) = dt w = -(K_e dt) e - K_x dx(k)
         gain = solution.gain.copy()
-        gain[:, :n] *= dt_s
+        gain[:, :n_errors] *= dt_s
     else:
         system = discretise(continuous, dt_s, servo_discretisation(design))
         a_aug, b_aug = augmented_discrete(system.a, system.b, system.c)
         solution = discrete_lqr(a_aug, b_aug, q, r)
         gain = solution.gain
     return gain, float(np.max(np.abs(solution.closed_loop_eigenvalues)))
+
+
+# Eigenvalues of Sm below this fraction of its largest are the closed chain's constrained
+# directions (exactly zero in theory; ~1e-15 relative from the KKT inverse in practice, while
+# DYROS-JET's slowest free mode in double support is 0.038 / 3.3 ~ 1e-2 of the largest).
+MOTION_SUBSPACE_RTOL = 1e-8
+
+
+def motion_subspace(sm: np.ndarray, rtol: float = MOTION_SUBSPACE_RTOL) -> np.ndarray:
+    """Orthonormal basis V (n x r) of the range of Sm: the joint motions the chain allows.
+
+    Sm = S M^-1 (I - Pc) S^T of (19) maps joint torques to joint accelerations; with contacts
+    that close a chain (two feet on the ground) it is singular, and its range is the set of
+    joint velocities compatible with the contacts (S times the null space of Jc); its null
+    space holds the directions no joint torque can move (they only load the chain).
+    """
+    matrix = np.asarray(sm, dtype=float)
+    if not (np.isfinite(rtol) and 0 < rtol < 1):
+        raise ValueError(f"rtol must be in (0, 1), got {rtol}")
+    eigenvalues, vectors = np.linalg.eigh(0.5 * (matrix + matrix.T))
+    largest = float(np.max(eigenvalues))
+    if largest <= 0:
+        raise ValueError("Sm has no positive eigenvalue: no joint motion is possible")
+    if np.min(eigenvalues) < -rtol * largest:
+        raise ValueError(f"Sm must be positive semi-definite, got eigenvalue {eigenvalues.min()}")
+    return vectors[:, eigenvalues > rtol * largest]
+
+
+def closed_chain_state_space(
+    params: FlexibleJointParams, sm: np.ndarray, basis: np.ndarray
+) -> StateSpace:
+    """(20) on the chain's own coordinates: x_r = [theta_m (n); xi (r); dxi/dt (r)] with
+    theta_j = V xi (V = `basis`, orthonormal, spanning the range of Sm), y = xi.
+
+    The link states of (20) in the null space of Sm have no dynamics (their acceleration is
+    Sm tau = 0 whatever tau), so the subspace theta_j, dtheta_j in range(V) is invariant and
+    x = T x_r with T = blockdiag(I, V, V) gives A_r = T' A T, B_r = T' B, C_r = V' C T exactly.
+    """
+    full = flexible_joint_state_space(params, sm)
+    n = params.n_joints
+    rank = basis.shape[1]
+    transform = np.zeros((3 * n, n + 2 * rank))
+    transform[:n, :n] = np.eye(n)
+    transform[n : 2 * n, n : n + rank] = basis
+    transform[2 * n :, n + rank :] = basis
+    return StateSpace(
+        a=transform.T @ full.a @ transform,
+        b=transform.T @ full.b,
+        c=basis.T @ full.c @ transform,
+    )
+
+
+def _design_closed_chain(
+    params: FlexibleJointParams,
+    sm: np.ndarray,
+    dt_s: float,
+    weights: LqrWeights,
+    design: LqrDesign,
+) -> tuple[np.ndarray, float]:
+    """The coupled design on the motion subspace, mapped back to [e; dx] (n x 4n)."""
+    n = params.n_joints
+    basis = motion_subspace(sm)
+    rank = basis.shape[1]
+    reduced = closed_chain_state_space(params, sm, basis)
+    gain_r, radius = _design_discrete_coupled(params, sm, dt_s, weights, design, reduced)
+    # gain_r acts on [V'e (r); d theta_m (n); V' d theta_j (r); V' d dtheta_j (r)]
+    gain = np.zeros((n, 4 * n))
+    gain[:, :n] = gain_r[:, :rank] @ basis.T
+    gain[:, n : 2 * n] = gain_r[:, rank : rank + n]
+    gain[:, 2 * n : 3 * n] = gain_r[:, rank + n : 2 * rank + n] @ basis.T
+    gain[:, 3 * n :] = gain_r[:, 2 * rank + n :] @ basis.T
+    return gain, radius
 
 
 def design_discrete_tracking_lqr(
@@ -393,6 +501,9 @@ def design_discrete_tracking_lqr(
     coupling: "full" solves one 4n-state problem with the whole Sm; "diagonal" keeps only the
     diagonal of Sm (as the lab's code does), solves n independent 4-state problems and stacks
     them (each gain block is then diagonal). With a diagonal Sm both give the same gain.
+    "closed-chain" solves the coupled problem on the motions the chain allows (the range of
+    Sm, rank r): state [V'e; d theta_m; V' d theta_j; V' d dtheta_j] (3r + n), see the
+    module docstring; with a nonsingular Sm it is the "full" design (same gain).
     """
     weights = weights if weights is not None else LqrWeights()
     if method not in LQR_DESIGNS:
@@ -401,6 +512,8 @@ def design_discrete_tracking_lqr(
     sm = validate_sm(sm, n)
     if coupling == "full":
         gain, radius = _design_discrete_coupled(params, sm, dt_s, weights, method)
+    elif coupling == "closed-chain":
+        gain, radius = _design_closed_chain(params, sm, dt_s, weights, method)
     elif coupling == "diagonal":
         gain = np.zeros((n, 4 * n))
         radius = 0.0

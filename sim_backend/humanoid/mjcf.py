@@ -224,7 +224,8 @@ def build_mjcf(
     return f"""<mujoco model="{description.name}">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
   <option timestep="{_num(params.physics_timestep_s)}" integrator="implicitfast"
-          gravity="0 0 {_num(-params.gravity_m_s2)}"/>
+          gravity="0 0 {_num(-params.gravity_m_s2)}" cone="{c.friction_cone}"
+          impratio="{_num(c.friction_impedance_ratio)}"/>
   <default>
     <geom contype="0" conaffinity="0"/>
   </default>
