@@ -75,7 +75,11 @@ class Emulator:
         nodes = sensor_nodes(self.hardware)
         self.testbed = self.hardware
         self.chain = DynamixelChain(self.devices, enforce_baud=True)
-        self.line = DynamixelLine(self.chain, realtime=self.realtime)
+        self.line = DynamixelLine(
+            self.chain,
+            realtime=self.realtime,
+            adapter_latency_s=spec.usb_latency_timer_s if self.realtime else 0.0,
+        )
         self.segment = CanSegment(nodes, bitrate=spec.can_bitrate)
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
         self.sync_count = 0

@@ -90,6 +90,7 @@ class EmulatorSpec:
     sensor_noise: SensorNoise = field(default_factory=SensorNoise)
     robot: str = "testbed"  # or "dyros-jet" (with `humanoid`)
     humanoid: HumanoidSpec | None = None
+    usb_latency_timer_s: float = 0.0  # the USB-serial adapter's, realtime only (line.py)
 
     def __post_init__(self) -> None:
         if not self.joints:
@@ -107,3 +108,5 @@ class EmulatorSpec:
             )
         if not self.period_s > 0:
             raise ValueError("period_s must be > 0")
+        if not 0 <= self.usb_latency_timer_s <= 0.255:  # FTDI: 1..255 ms
+            raise ValueError("usb_latency_timer_s must be in 0..0.255 s")

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from controller import CONTROLLER_NAMES, ControllerKind, JointController
+from drivers.tick_budget import tick_budget
 from drivers.timing import DurationStats as Distribution
 from hil.bench.bus import JOINT_COUNTS
 from hil.bench.common import (
@@ -56,6 +57,7 @@ from hil.output.records import RunResult
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
+from hil.wiring.hardware import bus_config
 
 DEFAULT_LOOP_TICKS = 1000  # 5 s at 200 Hz: the whole impact experiment
 CONTROLLER_WARMUP_TICKS = 20
@@ -358,11 +360,18 @@ def run_bench_loop(
             wall = bench_wall_clock(config, ticks, Path(tmp) / "wall", say)
         except BenchError as exc:  # the other figures stand; say why this one is missing
             wall = {"error": str(exc), "rate_hz": config.loop.rate_hz}
+    budget = tick_budget(bus_config(config, Connection.from_config(config)), config.loop.period_s)
     return {
         "bench": "loop",
         "machine": machine(),
         "config": config.source,
         "period_s": config.loop.period_s,
+        "tick_budget": {
+            **dataclasses.asdict(budget),
+            "sequential_s": budget.sequential_s,
+            "overlapped_s": budget.overlapped_s,
+            "text": budget.text(),
+        },
         "controllers": controllers,
         "gain_schedule": schedule,
         "lockstep_run": lockstep,
@@ -394,6 +403,11 @@ def loop_report_text(report: dict[str, Any]) -> str:
             + ", gain design "
             + Distribution(**schedule["design"]).text(),
         ]
+    lines += [
+        "",
+        "the tick on a real robot's wires (drivers/tick_budget.py, from the configuration):",
+    ]
+    lines.append("  " + report["tick_budget"]["text"])
     lock = report["lockstep_run"]
     lines += [
         "",

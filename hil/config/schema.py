@@ -139,13 +139,16 @@ class ModelSection(Section):
     robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
     a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
     and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
-    off the 200 Hz path; `sm_coupling` "diagonal" (the lab's) or "full".
+    off the 200 Hz path; `sm_coupling` "diagonal" (the lab's: one design per joint on Sm's
+    diagonal), "full" (one design on the whole Sm; none exists in double support, where Sm is
+    singular) or "closed-chain" (the whole Sm, designed on the motions the legs and the ground
+    allow: controller/lqr.py; docs/studies/lqr_standing/ says why).
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
     """
 
     robot: Literal["single_link", "dyros-jet"] = "single_link"
     description: str | None = None
-    sm_coupling: Literal["diagonal", "full"] = "diagonal"
+    sm_coupling: Literal["diagonal", "full", "closed-chain"] = "diagonal"
     gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
     stiffness_nm_per_rad: float = Field(2000.0, gt=0)
     damping_nms_per_rad: float = Field(100.0, ge=0)
@@ -287,6 +290,9 @@ class EmulatorSection(Section):
     servo: dict[str, Any] = Field(default_factory=dict)  # servo parameter overrides
     sensor_noise: dict[str, Any] = Field(default_factory=dict)  # CAN sensors' noise overrides
     reboot_time_s: float = Field(0.5, gt=0)
+    # The emulated USB-serial adapter's latency timer in realtime mode (None: the chain's
+    # `latency_timer_ms`, as if set so; 16 rehearses an FTDI adapter left at its default).
+    usb_latency_timer_ms: float | None = Field(None, ge=0, le=255)
 
 
 class ConfigFile(Section):

@@ -32,14 +32,22 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from drivers.joint_bus import wrench_keys
 from hil.experiments.base import Experiment, PelvisPush, World
+from hil.output.plots import (
+    ComparisonRun,
+    WorldMarks,
+    comparison_title,
+    in_drawing_order,
+    mark_world,
+    save_figure,
+)
 from hil.output.plots import Push as PushMark
-from hil.output.plots import WorldMarks
 from hil.output.records import RunEntry
 from hil.output.report import Column, Relation, check, find, metric, number
 from hil.output.rundir import RunData
@@ -217,6 +225,42 @@ class HumanoidStandingExperiment(Experiment):
 
     def relations(self, entries: Sequence[RunEntry]) -> list[Relation]:
         return standing_relations(self.name, entries)
+
+    def comparison_figure(
+        self, runs: Sequence[ComparisonRun], path: Path, setup: str
+    ) -> Path | None:
+        """The measured ZMP (fore-aft, sideways, with the feet's extent) and the pelvis tilt of
+        every controller's run over time."""
+        if not runs:
+            return None
+        from matplotlib.figure import Figure
+
+        figure = Figure(figsize=(9.0, 8.0), layout="constrained")
+        axes = figure.subplots(3, 1, sharex=True)
+        desired = self._desired_zmp()
+        for entry in in_drawing_order(runs):
+            run = entry.run
+            kinematics = StandingKinematics.of(run)
+            time_s = run.time_s
+            style = entry.style.kwargs()
+            axes[0].plot(time_s, kinematics.zmp_m[:, 0], label=entry.label, **style)
+            axes[1].plot(time_s, kinematics.zmp_m[:, 1], **style)
+            axes[2].plot(time_s, kinematics.tilt_rad, **style)
+        polygon = StandingKinematics.of(runs[0].run).support_polygon
+        for ax, axis in ((axes[0], 0), (axes[1], 1)):
+            ax.axhline(desired[axis], color="k", lw=0.8, ls="--", label="desired (CoM)")
+            for edge in polygon[2 * axis : 2 * axis + 2]:
+                ax.axhline(edge, color="0.6", lw=0.8, ls=":")
+        for ax in axes:
+            mark_world(ax, self.marks(runs[0].run))
+            ax.grid(True, alpha=0.3)
+        axes[0].set_ylabel("ZMP x (forward) [m]")
+        axes[1].set_ylabel("ZMP y (left) [m]\n(dotted: the feet)")
+        axes[2].set_ylabel("pelvis tilt [rad]")
+        axes[2].set_xlabel("time [s]")
+        axes[0].legend(fontsize=8, loc="upper right")
+        figure.suptitle(comparison_title(self.title, setup))
+        return save_figure(figure, path)
 
 
 def _max(values: np.ndarray) -> float | None:

@@ -71,8 +71,9 @@ class HumanoidLegs(RobotModel):
         self.leg_model = LegModel(urdf_text)
         self.gravity = HumanoidLegGravity(self.leg_model, SupportState.DOUBLE)
         self._inertia = ContactProjectedInertia(self.leg_model)
-        self._coupling = SmCoupling(coupling)
-        self.lqr_coupling = "diagonal" if self._coupling is SmCoupling.DIAGONAL else "full"
+        # "closed-chain" designs on the whole Sm (controller/lqr.py); the others as named
+        self._coupling = SmCoupling.FULL if coupling == "closed-chain" else SmCoupling(coupling)
+        self.lqr_coupling = coupling
 
     def sm(self, link_angle_rad: np.ndarray, support: object) -> np.ndarray:
         return self._inertia.sm(link_angle_rad, self.support_type(support), self._coupling)

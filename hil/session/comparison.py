@@ -9,6 +9,8 @@ The plan (`comparison_plan`):
   bounded one ("accumulated-integral"): does the compliance last, or does the force creep?
 - impact held a minute (`impact-long`): the DOB with Kdist 1 and 0.5, long enough to see the
   equilibrium behind the paper's "steady-state error".
+On DYROS-JET (`--robot dyros-jet`): stand and push, each with pid, gc, gc+lqr and gc+lqr+dob
+(the configuration's Kdist: the lab's stance 0.2), Sec. IV-C.
 A run ending in a safety stop is a result of the comparison; one that did not run its course
 (interrupted, refused at its start, a lost bus) makes the comparison incomplete, and Ctrl-C
 stops the whole plan.
@@ -22,12 +24,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from hil.config import robot_of
 from hil.experiments import (
     CONTACT,
     CONTACT_LONG,
     EXPERIMENTS,
     IMPACT,
     IMPACT_LONG,
+    PUSH,
+    STAND,
     Experiment,
 )
 from hil.loop import StopFlag
@@ -58,10 +63,21 @@ class ComparisonOutcome:
     incomplete: str | None  # why the comparison is incomplete, None when every run ran its course
 
 
+def humanoid_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
+    """DYROS-JET standing and pushed, with each of the four controllers."""
+    choices = (
+        ControllerChoice(ControllerKind.PID),
+        ControllerChoice(ControllerKind.GC),
+        ControllerChoice(ControllerKind.GC_LQR),
+        ControllerChoice(ControllerKind.GC_LQR_DOB, kdist),
+    )
+    return [(experiment, choice) for experiment in (STAND, PUSH) for choice in choices]
+
+
 def comparison_plan(
     default_reading: str, *, long_runs: bool = True
 ) -> list[tuple[Experiment, ControllerChoice]]:
-    """The runs of the comparison, in order (see the module docstring)."""
+    """The runs of the testbed comparison, in order (see the module docstring)."""
     other = "literal" if default_reading == "accumulated" else "accumulated"
     dob = ControllerKind.GC_LQR_DOB
     choices = [*COMPARISON_CHOICES, ControllerChoice(dob, OTHER_READING_KDIST, other)]
@@ -91,8 +107,13 @@ def run_comparison(
     actuator's own overload protection acting, and the guard would pre-empt it.
     """
     base = session.config.changed("safety", current_guard=current_guard)
-    root = unique_dir(session.out_root / f"{timestamp()}-comparison")
-    plan = comparison_plan(base.controller.composition, long_runs=long_runs)
+    humanoid = robot_of(base) == "dyros-jet"
+    name = "humanoid-comparison" if humanoid else "comparison"
+    root = unique_dir(session.out_root / f"{timestamp()}-{name}")
+    if humanoid:
+        plan = humanoid_plan(base.controller.kdist)
+    else:
+        plan = comparison_plan(base.controller.composition, long_runs=long_runs)
     started = time.perf_counter()
     session.config = base
     bar = Progress(
@@ -105,7 +126,7 @@ def run_comparison(
         bar.close()
         session.progress = None
     report = write_comparison_report(
-        root, entries, session.description, time.perf_counter() - started
+        root, entries, session.description, time.perf_counter() - started, humanoid=humanoid
     )
     print(report.table_text)
     print(f"report: {report.markdown_path}")
@@ -158,9 +179,14 @@ def _run_plan(
 
 
 def write_comparison_report(
-    root: Path, entries: Sequence[RunEntry], setup: str, wall_time_s: float
+    root: Path,
+    entries: Sequence[RunEntry],
+    setup: str,
+    wall_time_s: float,
+    *,
+    humanoid: bool = False,
 ) -> Report:
-    """The report of the testbed comparison (figures, relations, tables) for these runs."""
+    """The report of the comparison (figures, relations, tables) for these runs."""
     relations = []
     figures: list[Path] = []
     problems: list[str] = []
@@ -187,8 +213,12 @@ def write_comparison_report(
         if path is not None:
             figures.append(path)
     content = ReportContent(
-        title="Testbed comparison: Kim et al., ICRA 2018, Figs. 5 and 6",
-        claims_source="Kim et al., ICRA 2018, Sec. IV-B",
+        title="DYROS-JET standing and pushed: Kim et al., ICRA 2018, Sec. IV-C"
+        if humanoid
+        else "Testbed comparison: Kim et al., ICRA 2018, Figs. 5 and 6",
+        claims_source="Kim et al., ICRA 2018, Sec. III-A, IV-C"
+        if humanoid
+        else "Kim et al., ICRA 2018, Sec. IV-B",
         setup=setup,
         wall_time_s=wall_time_s,
         columns=tuple(columns),

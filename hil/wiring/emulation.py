@@ -133,6 +133,7 @@ def emulator_spec(
             sensor_noise=noise,
             robot="testbed" if config.model.robot == "single_link" else config.model.robot,
             humanoid=_humanoid(config, start),
+            usb_latency_timer_s=_usb_latency_ms(config) * 1e-3,
         )
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
@@ -285,3 +286,9 @@ class EmbeddedEmulator:
 
     def __exit__(self, *exc_info: object) -> None:
         self.stop()
+
+
+def _usb_latency_ms(config: Config) -> float:
+    """The emulated adapter's latency timer: [emulator] usb_latency_timer_ms, or the chain's."""
+    configured = config.emulator.usb_latency_timer_ms
+    return config.dynamixel[0].latency_timer_ms if configured is None else configured

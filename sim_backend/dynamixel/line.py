@@ -17,7 +17,10 @@ Modes:
 - instant (default): every reply is written as soon as its instruction is parsed.
 - realtime: replies are held until the wire model's due time (see `DynamixelChain`); if the host
   starts sending again while replies are still held, those replies are discarded (on a
-  half-duplex bus they would collide with the host's packet).
+  half-duplex bus they would collide with the host's packet). With `adapter_latency_s`, a reply
+  that left the wire waits that much more in the USB-serial adapter before the host sees it:
+  the adapter (an FTDI chip) passes a short packet on only when its latency timer expires
+  (16 ms by default, 1 ms when set), the cost a rehearsal should show.
 
 The byte timeout (1.5 ms, e-Manual) drops a partial frame only when the line has really been
 idle: bytes are timestamped when they are read, and `on_idle` first reads again and only times
@@ -86,13 +89,18 @@ class DynamixelLine:
         *,
         realtime: bool = False,
         clock: Callable[[], float] = time.monotonic,
+        adapter_latency_s: float = 0.0,
     ) -> None:
+        if adapter_latency_s < 0 or (adapter_latency_s and not realtime):
+            raise ValueError("adapter_latency_s must be >= 0, and only in realtime mode")
         self.chain = chain
         self.realtime = realtime
         self.clock = clock
+        self.adapter_latency_s = adapter_latency_s
         self.parser = PacketParser()
         self.stats = LineStats()
-        self._pending: list[Reply] = []
+        self._pending: list[Reply] = []  # (wire due time, packet): still on the bus
+        self._in_adapter: list[Reply] = []  # (delivery time, packet): off the bus, not passed on
         self._pty = RawPty()
         self.port_path: str = self._pty.path
         self._closed = False
@@ -128,21 +136,21 @@ class DynamixelLine:
         candidates = [t for t in (self.parser.idle_deadline_s,) if t is not None]
         if self._pending:
             candidates.append(self._pending[0][0])
+        if self._in_adapter:
+            candidates.append(self._in_adapter[0][0])
         return min(candidates) if candidates else None
 
     def flush_due(self) -> None:
-        """Write the held replies whose time has come."""
-        if not self._pending:
+        """Write the held replies whose time has come (through the adapter's delay, if any)."""
+        if not self._pending and not self._in_adapter:
             return
         now_s = self.clock()
-        sent = 0
-        for due_s, _ in self._pending:
-            if due_s > now_s:
-                break
-            sent += 1
-        if sent:
-            self._write([packet for _, packet in self._pending[:sent]])
-            del self._pending[:sent]
+        off_wire = _take_due(self._pending, now_s)
+        if self.adapter_latency_s:
+            self._in_adapter += [(due + self.adapter_latency_s, p) for due, p in off_wire]
+            off_wire = _take_due(self._in_adapter, now_s)
+        if off_wire:
+            self._write([packet for _, packet in off_wire])
 
     def drain(self) -> None:
         """Handle everything readable right now, without waiting; then flush due replies."""
@@ -206,6 +214,18 @@ class DynamixelLine:
             view = view[written:]
             self.stats.bytes_out += written
         self.stats.replies_sent += len(packets)
+
+
+def _take_due(queue: list[Reply], now_s: float) -> list[Reply]:
+    """Remove and return the leading entries of a time-ordered queue that are due."""
+    count = 0
+    for due_s, _ in queue:
+        if due_s > now_s:
+            break
+        count += 1
+    taken = queue[:count]
+    del queue[:count]
+    return taken
 
 
 def request_realtime_scheduling(priority: int = 10) -> bool:

@@ -146,6 +146,39 @@ def test_realtime_mode_holds_replies_until_due(
     assert line.next_due_s() is None
 
 
+def test_the_usb_adapter_passes_a_reply_on_after_its_latency_timer(clock: FakeClock) -> None:
+    # FTDI: a short packet waits in the adapter until the latency timer expires (1 ms set here);
+    # the host talking after the reply left the wire no longer collides with it
+    line = DynamixelLine(
+        DynamixelChain([H54Device(1)]), realtime=True, clock=clock, adapter_latency_s=1e-3
+    )
+    host = Host(line.port_path)
+    try:
+        speed = termios.tcgetattr(host.fd)
+        speed[4] = speed[5] = termios.B1000000
+        termios.tcsetattr(host.fd, termios.TCSANOW, speed)
+        host.send(READ_1)
+        wait_readable(line)
+        line.on_readable()
+        wire_due_s = clock.now_s + (14 + 15) * 10 / 1e6 + 250 * 2e-6
+        clock.now_s = wire_due_s
+        line.flush_due()  # off the wire, into the adapter
+        assert host.receive(wait_s=0.02) == []
+        assert line.next_due_s() == pytest.approx(wire_due_s + 1e-3)
+        clock.now_s = wire_due_s + 1e-3 - 1e-6
+        line.flush_due()
+        assert host.receive(wait_s=0.02) == []
+        clock.now_s = wire_due_s + 1e-3
+        line.flush_due()
+        assert [reply[0] for reply in host.receive()] == [1]
+        assert line.next_due_s() is None
+    finally:
+        host.close()
+        line.close()
+    with pytest.raises(ValueError, match="only in realtime"):
+        DynamixelLine(DynamixelChain([H54Device(1)]), adapter_latency_s=1e-3)
+
+
 def test_host_talking_over_held_replies_discards_them(
     realtime: tuple[DynamixelLine, Host], clock: FakeClock
 ) -> None:
