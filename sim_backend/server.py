@@ -61,6 +61,7 @@ __all__ = [
 ]
 
 SYNC_COB_ID = 0x080
+MAX_PHYSICS_STEPS_PER_TURN = 2  # realtime: physics between two looks at the buses (1 ms steps)
 
 
 class Emulator:
@@ -79,6 +80,7 @@ class Emulator:
             self.chain,
             realtime=self.realtime,
             adapter_latency_s=spec.usb_latency_timer_s if self.realtime else 0.0,
+            hold_reads=not self.realtime,
         )
         self.segment = CanSegment(nodes, bitrate=spec.can_bitrate)
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
@@ -139,6 +141,10 @@ class Emulator:
                 line.on_readable()
             else:
                 line.on_idle()
+            if line.holds_reads:  # lock-step: a SYNC sent before the read steps the plant first
+                for frame in slcan.read_frames():
+                    self._on_host_frame(frame)
+                line.release_held_reads()
             line.flush_due()
             if self.realtime:
                 next_physics = self._follow_wall_clock()
@@ -170,7 +176,11 @@ class Emulator:
             self._wall_origin += behind - dt
             behind = dt
         if behind >= dt:
-            self.testbed.advance(math.floor(behind / dt) * dt)
+            # a few steps per turn of the event loop, so the buses are served between them
+            # even when the plant cannot keep up with the wall clock (12 joints on a loaded
+            # machine): replies stay on time, the state they report lags instead
+            steps = min(math.floor(behind / dt), MAX_PHYSICS_STEPS_PER_TURN)
+            self.testbed.advance(steps * dt)
             self._apply_faults()
         return self._wall_origin + self.testbed.time_s + dt
 

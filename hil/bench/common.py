@@ -95,7 +95,12 @@ def with_bench_reply_timeout(config: Config) -> Config:
         )
         for d in config.dynamixel
     ]
-    return config.replaced(dynamixel=chains)
+    # the emulated adapter keeps the configured latency timer: only the timeout is widened
+    adapter_ms = config.emulator.usb_latency_timer_ms
+    if adapter_ms is None:
+        adapter_ms = config.dynamixel[0].latency_timer_ms
+    emulator = config.emulator.model_copy(update={"usb_latency_timer_ms": adapter_ms})
+    return config.replaced(dynamixel=chains, emulator=emulator)
 
 
 def without_nan(value: Any) -> Any:

@@ -42,7 +42,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from sim_backend.dynamixel.chain import DynamixelChain, Reply
-from sim_backend.dynamixel.protocol import PacketParser, ParsedPacket
+from sim_backend.dynamixel.protocol import Instruction, PacketParser, ParsedPacket
 from sim_backend.pseudo_terminal import RawPty
 
 _STANDARD_BAUDS = (
@@ -69,6 +69,16 @@ _TERMIOS_SPEED_TO_BPS: dict[int, int] = {
     getattr(termios, f"B{bps}"): bps for bps in _STANDARD_BAUDS if hasattr(termios, f"B{bps}")
 }
 _READ_CHUNK_BYTES = 4096
+# Instructions that only report the device's state: held back by drain(hold_reads=True).
+_READS = frozenset(
+    (
+        Instruction.PING,
+        Instruction.READ,
+        Instruction.SYNC_READ,
+        Instruction.FAST_SYNC_READ,
+        Instruction.BULK_READ,
+    )
+)
 
 
 @dataclass
@@ -90,7 +100,11 @@ class DynamixelLine:
         realtime: bool = False,
         clock: Callable[[], float] = time.monotonic,
         adapter_latency_s: float = 0.0,
+        hold_reads: bool = False,
     ) -> None:
+        """hold_reads: read instructions (and pings) wait for `release_held_reads()`, writes
+        run at once: the lock-step emulator must see a SYNC the host sent before a read, which
+        may still sit unread on the CAN side when the read arrives, before it answers."""
         if adapter_latency_s < 0 or (adapter_latency_s and not realtime):
             raise ValueError("adapter_latency_s must be >= 0, and only in realtime mode")
         self.chain = chain
@@ -101,6 +115,8 @@ class DynamixelLine:
         self.stats = LineStats()
         self._pending: list[Reply] = []  # (wire due time, packet): still on the bus
         self._in_adapter: list[Reply] = []  # (delivery time, packet): off the bus, not passed on
+        self.hold_reads = hold_reads
+        self._held_reads: list[ParsedPacket] = []
         self._pty = RawPty()
         self.port_path: str = self._pty.path
         self._closed = False
@@ -161,6 +177,16 @@ class DynamixelLine:
             self._process(data, self.clock())
         self.flush_due()
 
+    @property
+    def holds_reads(self) -> bool:
+        """Read instructions wait for `release_held_reads()` (see `hold_reads`)."""
+        return bool(self._held_reads)
+
+    def release_held_reads(self) -> None:
+        """Answer the read instructions held back (see `hold_reads`), in their order."""
+        held, self._held_reads = self._held_reads, []
+        self._execute(held, self.clock())
+
     def close(self) -> None:
         if self._closed:
             return
@@ -184,7 +210,11 @@ class DynamixelLine:
         if self._pending:  # the host is talking: replies not yet on the wire collide
             self.stats.replies_discarded += len(self._pending)
             self._pending.clear()
-        self._execute(self.parser.feed(data, now_s), now_s)
+        packets = self.parser.feed(data, now_s)
+        if self.hold_reads:
+            self._held_reads += [p for p in packets if p.instruction in _READS]
+            packets = [p for p in packets if p.instruction not in _READS]
+        self._execute(packets, now_s)
 
     def _execute(self, packets: list[ParsedPacket], now_s: float) -> None:
         if not packets:

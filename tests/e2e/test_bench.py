@@ -10,7 +10,6 @@ cannot turn into a lost reply here.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from pathlib import Path
@@ -25,6 +24,7 @@ from hil.bench.common import config_with_joints
 from hil.bench.loop import loop_report_text
 from hil.cli import main
 from hil.cli.bench import cmd_bench
+from hil.cli.parser import build_parser
 from hil.config import default_config_text, load_config
 
 # The built-in testbed at another baud: the bench must take the configuration it is given.
@@ -60,7 +60,9 @@ def test_bench_refuses_a_cycle_count_below_one(capsys: pytest.CaptureFixture[str
 def test_bench_bus_smoke(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     config_path = tmp_path / "testbed-4mbps.toml"
     config_path.write_text(CONFIG_AT_4_MBPS)
-    args = argparse.Namespace(what="bus", json=True, cycles=5, config=config_path)
+    args = build_parser().parse_args(
+        ["bench", "bus", "--json", "--cycles", "5", "--config", str(config_path)]
+    )
     assert cmd_bench(args) == 0
     report = _one_json_line(capsys)
     assert report["bench"] == "bus" and report["cycles"] == 5
