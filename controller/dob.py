@@ -69,7 +69,8 @@ import numpy as np
 
 from controller.model import DISCRETISATIONS, Discretisation
 
-LAB_Q_FILTER_POLE = 0.7  # d(k) = 0.7 d(k-1) + 0.3 raw(k), reference note sec. 1
+# d(k) = 0.7 d(k-1) + 0.3 raw(k): the lab's code (psh117/dyros_jet, walking_controller.cpp)
+LAB_Q_FILTER_POLE = 0.7
 LAB_LOOP_PERIOD_S = 1.0 / 200.0
 
 

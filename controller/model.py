@@ -191,7 +191,8 @@ def discretise(
 
     "zoh": exact for an input held constant over each period (what a goal angle written once a
     tick is): [[Ad, Bd], [0, I]] = expm([[A, B], [0, 0]] dt).
-    "euler": forward Euler, Ad = I + A dt, Bd = B dt (the lab's code, reference note sec. 1).
+    "euler": forward Euler, Ad = I + A dt, Bd = B dt (the lab's code: psh117/dyros_jet,
+    walking_controller.cpp, discreteModel).
     It misplaces every pole lambda with |1 + lambda dt| > 1 outside the unit circle: for one
     joint with Sm = 1/I the gear's fast real pole crosses -2/dt when I < D dt/2 - K dt^2/4
     (0.2375 kg m^2 for the paper's K, D at 200 Hz), and the Euler model is then unstable although

@@ -1,6 +1,6 @@
 """A pseudo-terminal an emulated device answers on: the host opens `path` as a serial port.
 
-Facts this relies on (measured on Linux, see the reference notes): a fresh pty is in cooked mode
+Facts this relies on (measured on Linux): a fresh pty is in cooked mode
 (echo, CR/LF mapping, line buffering), so the device side puts it in raw mode itself; the master
 gets EIO/HUP whenever no slave fd is open - which happens each time a host closes and reopens the
 port (dynamixel-sdk does on every setBaudRate) - so the device keeps its own slave fd open for its

@@ -5,11 +5,12 @@ The SDK's `PortHandler.setPacketTimeout` waits for a reply for
     tx_time_per_byte * packet_length + 2 * LATENCY_TIMER + 2.0   [ms]
 
 with the module constant LATENCY_TIMER = 16 ms (the FTDI default latency), i.e. >= 34 ms of
-busy-wait per unanswered call (measured 34.3 ms; reference note section 3.2). A 200 Hz loop must
-not discover a missing device that way. ROBOTIS advise setting the USB-serial latency timer to
-1 ms (DynamixelSDK issues #288, #319, #116); `LowLatencyPortHandler` makes the latency term a
-parameter so the timeout matches the adapter's real setting. The SDK itself stays unmodified: this
-is a subclass overriding `setPacketTimeout` (and the clock it measures with, see below).
+busy-wait per unanswered call (measured 34.2-34.6 ms with dynamixel-sdk on a pty). A 200 Hz
+loop must not discover a missing device that way. ROBOTIS advise setting the USB-serial latency
+timer to 1 ms (DynamixelSDK issues #288, #319, #116); `LowLatencyPortHandler` makes the latency
+term a parameter so the timeout matches the adapter's real setting. The SDK itself stays
+unmodified: this is a subclass overriding `setPacketTimeout` (and the clock it measures with,
+see below).
 
 Measured against the emulated chain (tests/test_dxl_driver_faults.py), 4 Mbps, latency 1 ms:
 a sync read with one silent ID costs 4.25 ms (3 IDs) / 4.84 ms (12 IDs), its timeout of

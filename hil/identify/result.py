@@ -49,7 +49,7 @@ _UNITS = {
     Parameter.MOTOR_COULOMB_FRICTION: "N m",
 }
 
-# The key the configuration file and the brief use for the damping; written as an alias.
+# The key the configuration file uses for the damping; written as an alias.
 GEAR_DAMPING_CONFIG_KEY = "gear_damping_nms_per_rad"
 
 

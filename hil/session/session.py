@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from drivers.joint_bus import JointBus
-from hil.config import Config
+from hil.config import Config, robot_of
 from hil.experiments import Experiment
 from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, run_experiment
 from hil.output.channels import MessageSink
@@ -92,10 +92,15 @@ class Session:
 
     @property
     def description(self) -> str:
+        emulated = (
+            "emulated DYROS-JET legs"
+            if robot_of(self.config) == "dyros-jet"
+            else ("emulated testbed")
+        )
         if self.setup is Setup.EMBEDDED:
-            return "emulated testbed, " + ("real time" if self.realtime else "lock-step")
+            return f"{emulated}, " + ("real time" if self.realtime else "lock-step")
         if self.setup is Setup.IN_PROCESS:
-            return "emulated testbed in process, lock-step"
+            return f"{emulated} in process, lock-step"
         if self.setup is Setup.ATTACHED:
             return f"attached emulator {(self.attach or {}).get('dynamixel_port')}"
         return "hardware " + ", ".join(d.port for d in self.config.dynamixel)
@@ -141,7 +146,7 @@ class Session:
                 try:
                     endpoints = emulator.start()
                 except EmulatorStartError as exc:
-                    raise SessionError(f"could not start the emulated testbed: {exc}") from exc
+                    raise SessionError(f"could not start the emulator: {exc}") from exc
                 yield Connection.from_endpoints(endpoints, self.config)
             finally:
                 emulator.stop()  # also after Ctrl-C during start-up: no child left behind

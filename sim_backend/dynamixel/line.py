@@ -7,7 +7,7 @@
         line.on_readable() if readable else line.on_idle()
         line.flush_due()
 
-Pty facts this relies on (measured, see the reference notes): a fresh pty is in cooked mode, so
+Pty facts this relies on (measured on Linux): a fresh pty is in cooked mode, so
 the emulator puts it in raw mode itself; the master gets EIO/HUP whenever no slave fd is open,
 which happens every time the SDK's setBaudRate() closes and reopens the port, so the emulator
 keeps its own slave fd open for the life of the line; a pty moves bytes instantly, whatever

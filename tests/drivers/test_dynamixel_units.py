@@ -60,7 +60,7 @@ def test_position_full_revolution_and_quantisation_step() -> None:
     assert position_to_rad(501_923, H54) == pytest.approx(2 * math.pi, rel=1e-15)
     step = position_to_rad(1, H54) - position_to_rad(0, H54)
     assert step == pytest.approx(2 * math.pi / 501_923, rel=1e-12)
-    assert step == pytest.approx(1.2518e-5, rel=1e-4)  # reference note: 1.2518e-5 rad/pulse
+    assert step == pytest.approx(1.2518e-5, rel=1e-4)  # e-Manual H54: 501,923 pulses/rev
     # The position-mode range +-250,961 pulses is +-179.999 degrees (e-Manual).
     assert math.degrees(position_to_rad(250_961, H54)) == pytest.approx(179.999, abs=1e-3)
     assert math.degrees(position_to_rad(-250_961, H54)) == pytest.approx(-179.999, abs=1e-3)
@@ -83,7 +83,7 @@ def test_position_direction_offset_and_round_trip() -> None:
 def test_velocity_unit() -> None:
     rad_s_per_unit = 0.00199234 * 2 * math.pi / 60  # e-Manual: 0.00199234 rpm per unit
     assert velocity_to_rad_s(1, H54) == pytest.approx(rad_s_per_unit, rel=1e-12)
-    assert rad_s_per_unit == pytest.approx(2.0864e-4, rel=1e-4)  # reference note figure
+    assert rad_s_per_unit == pytest.approx(2.0864e-4, rel=1e-4)  # e-Manual H54 figure
     # 30,116 units x 0.00199234 rpm = 60.0017 rpm = 6.2834 rad/s.
     assert velocity_to_rad_s(30_116, H54) == pytest.approx(60.0017 * 2 * math.pi / 60, rel=1e-5)
     assert velocity_to_rad_s(-100, H54, -1) == pytest.approx(100 * rad_s_per_unit)
@@ -94,7 +94,7 @@ def test_current_and_torque_estimate() -> None:
     assert current_to_a(2048, H54) == pytest.approx(33.0)  # 33,000 mA / 2,048 per unit
     assert current_to_a(-1, H54) == pytest.approx(-0.01611328, rel=1e-6)
     assert current_to_a(10, H54, -1) == pytest.approx(-0.1611328, rel=1e-6)
-    # Default Torque Limit 620 units ~ 9.99 A (reference note, derived).
+    # Default Torque Limit 620 units ~ 9.99 A (e-Manual H54: 16.11328 mA per unit).
     assert current_limit_raw_to_a(620, H54) == pytest.approx(9.99, abs=0.01)
     assert current_limit_a_to_raw(9.99, H54) == 620
     with pytest.raises(ValueError, match=">= 0 A"):
