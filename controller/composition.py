@@ -25,7 +25,7 @@ difference a - u into uc, so the next tick starts from what was really sent (and
 compares against the sent goal, stays consistent).
 
 Statics with the paper's nominal servo (derived here, tested in
-tests/test_controller_composition.py). Servo theta_dot_m = Kp (u + d - theta_m) with a constant
+tests/controller/test_composition.py). Servo theta_dot_m = Kp (u + d - theta_m) with a constant
 input disturbance d, constant reference and ug, LQR duc = -(Ke e + Kx dx), DOB q -> d. At rest
 dx = 0, so duc = -Ke e, and:
 - "literal": uc is constant only if Ke e = 0, so e = 0: the LQR's integral action removes any
@@ -61,7 +61,7 @@ nominal Kp equals the servo's Kpp. Quasi-statically (the LQR balance Ke e = Kdis
   e_b (tau_g - I_s(0)) whatever Ti_d: softer contact costs a larger sag. Derivation and
   figures: docs/reproduction.md.
 
-Robustness (tests/test_controller_closed_loop.py, `SampledLoop` with the paper's first-order
+Robustness (tests/controller/test_closed_loop.py, `SampledLoop` with the paper's first-order
 servo). Summing the DOB term makes it an integrator in a positive-feedback loop through the
 servo's model error. For the DOB alone, a ramp in u meets a true servo (b') lagging less than
 the nominal one (b) and feeds itself when Kdist (1/b - 1/b') >= 1: at Kdist = 1 a servo only 5 %

@@ -13,7 +13,7 @@ link-velocity increment d dtheta_j(k) = v(k) - v(k-1) is a second difference of 
 The lab's code fed ZERO for that increment (its d dtheta_j block was never filled): that is
 `link_velocity_increment="zero"` (`LinkVelocityIncrement`); the default is "backward-difference".
 Why the plain difference by default: it has only half a tick of lag, which the discrete LQR
-tolerates (tests/test_controller_closed_loop.py includes it in the sampled loop), and at a fine
+tolerates (tests/controller/test_closed_loop.py includes it in the sampled loop), and at a fine
 link resolution its noise is small. The noise, with eps the quantisation error of each sample
 (|eps| <= q/2 when rounding, 0 <= eps < q when truncating; uniform, variance q^2/12):
 

@@ -59,7 +59,7 @@ the lab's DOB hold a load at all.
 Why not the continuous gain itself at 200 Hz: its fastest closed-loop pole lies at -2,671 rad/s
 (Qx = I) for I_link = 0.376 kg m^2, far beyond pi/dt = 628 rad/s; implemented as
 duc(k) = dt * duc/dt it is unstable (spectral radius 2.99 with Qx = I, 13.0 with Q = 10 I on all
-states, tests/test_controller_closed_loop.py). The continuous design stays for analysis.
+states, tests/controller/test_closed_loop.py). The continuous design stays for analysis.
 
 Closed kinematic chains (coupling "closed-chain"). With both feet on the ground Sm of (19) is
 singular: DYROS-JET's legs have 18 velocities and 12 contact constraints, so Sm (12 x 12) has

@@ -12,7 +12,7 @@ term a parameter so the timeout matches the adapter's real setting. The SDK itse
 unmodified: this is a subclass overriding `setPacketTimeout` (and the clock it measures with,
 see below).
 
-Measured against the emulated chain (tests/test_dxl_driver_faults.py), 4 Mbps, latency 1 ms:
+Measured against the emulated chain (tests/drivers/test_dynamixel_faults.py), 4 Mbps, latency 1 ms:
 a sync read with one silent ID costs 4.25 ms (3 IDs) / 4.84 ms (12 IDs), its timeout of
 4.20 / 4.78 ms, instead of >= 34 ms with the SDK's own constant.
 """

@@ -8,7 +8,7 @@ and a corrupt one (the driver's CRC check), a silent ID (the driver's timeout), 
 The controller is gc+lqr+dob; the contact experiment holds until 1 s, then ramps the reference
 down (the motor moves), so faults injected at 1.0-1.5 s hit a moving joint.
 
-`pytest tests/test_safety_faults.py -s` prints the measured fault -> reaction -> ticks table.
+`pytest tests/e2e/test_safety_faults.py -s` prints the measured fault -> reaction -> ticks table.
 Ticks are counted from the first tick that sees the fault (the emulator applies a fault from
 the first CAN SYNC at or after its start time) to the tick on which the safe state is applied,
 both included; "wall" is the loop's own time over those ticks (timing.csv): in lock-step

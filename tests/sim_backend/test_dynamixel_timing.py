@@ -5,7 +5,7 @@ Return Delay Time (x 2 us) and its status bytes x 10 bits / baud. A pty itself i
 measured round trip must never be below the model and typically (lower quartile) exceed it
 only by the process hand-over overhead; bounds are generous (2-core VM, other tests running).
 Instant mode: the round trips printed here are the figures quoted in the report
-(`pytest -s tests/test_dxl_emulator_timing.py -k instant`).
+(`pytest -s tests/sim_backend/test_dynamixel_timing.py -k instant`).
 """
 
 from __future__ import annotations
