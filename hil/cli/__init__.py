@@ -5,6 +5,7 @@
     hil emulate [--config FILE] [--realtime] [--experiment NAME] [--inject FAULT@T[+D]]
     hil scan --port PATH [--baudrate N]
     hil reboot [--config FILE] [--port ...]
+    hil identify LOG_DIR... [--json] [--config FILE] [--figure PATH]
     hil bench bus|loop [--json]
     hil config                 print the sample configuration file
 
@@ -62,6 +63,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.devices import cmd_reboot, cmd_scan
 
         return cmd_scan(args) if args.command == "scan" else cmd_reboot(args)
+    if args.command == "identify":
+        from hil.cli.identify import cmd_identify
+
+        return cmd_identify(args)
     if args.command == "bench":
         from hil.cli.bench import cmd_bench
 

@@ -121,5 +121,25 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seed", type=int, default=0, help="soak: the faults' random seed")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
 
+    identify = sub.add_parser(
+        "identify",
+        help="fit the joint's constants (K, D, Kp, the servo's gains) from `hil run identify` runs",
+        description="Fit gear stiffness and damping, the paper's first-order servo gain Kp (4) "
+        "and the actuator's cascade (position gain, velocity gain and integral time) to the "
+        "logs of identification runs (`hil run identify`), with 95 % intervals; print a "
+        "configuration fragment and write a fit-quality figure next to the first log.",
+    )
+    identify.add_argument("logs", nargs="+", type=Path, metavar="LOG_DIR", help="run directory")
+    identify.add_argument("--json", action="store_true", help="last stdout line: JSON result")
+    identify.add_argument(
+        "--config",
+        type=Path,
+        help="the configuration whose [model] link inertia and gravity moment the fit is told "
+        "(default: the one the run recorded)",
+    )
+    identify.add_argument(
+        "--figure", type=Path, help="the figure file (default: LOG_DIR/identification.png)"
+    )
+
     sub.add_parser("config", help="print the sample configuration file")
     return parser

@@ -4,6 +4,7 @@
     impact        Kim et al., ICRA 2018, Fig. 6: an 80 N push while holding
     contact-long  the contact held 30 s: does the compliance last?
     impact-long   the impact held a minute: the error after the push at its equilibrium
+    identify      a chirp on the goal with the link free, open loop: the log `hil identify` fits
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
 name that does not exist.
@@ -11,10 +12,11 @@ name that does not exist.
 
 from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperiment, World
 from hil.experiments.contact import CONTACT, CONTACT_LONG
+from hil.experiments.identify import IDENTIFY, IdentifyExperiment
 from hil.experiments.impact import IMPACT, IMPACT_LONG
 
 EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG)
+    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG, IDENTIFY)
 }
 
 
@@ -31,9 +33,11 @@ __all__ = [
     "CONTACT",
     "CONTACT_LONG",
     "EXPERIMENTS",
+    "IDENTIFY",
     "IMPACT",
     "IMPACT_LONG",
     "Experiment",
+    "IdentifyExperiment",
     "Obstacle",
     "Push",
     "Ramp",

@@ -18,7 +18,7 @@ HIL_LAYERS = {
     "hil.vocabulary": set(),
     "hil.config": {"hil.vocabulary"},
     "hil.output": {"hil.vocabulary"},
-    "hil.experiments": {"hil.vocabulary", "hil.output"},
+    "hil.experiments": {"hil.vocabulary", "hil.output", "hil.identify"},
     "hil.safety": {"hil.vocabulary", "hil.config"},
     "hil.wiring": {"hil.vocabulary", "hil.config", "hil.experiments"},
     "hil.loop": {
