@@ -6,7 +6,8 @@
     hil scan --port PATH [--baudrate N]
     hil reboot [--config FILE] [--port ...]
     hil identify LOG_DIR... [--json] [--config FILE] [--figure PATH]
-    hil bench bus|loop [--json]
+    hil sweep SPEC [--address ADDR] [--workers N] [--out DIR] [--list] [--json]
+    hil bench bus|loop|soak|sweep [--json]
     hil config                 print the sample configuration file
 
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
@@ -67,6 +68,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.identify import cmd_identify
 
         return cmd_identify(args)
+    if args.command == "sweep":
+        from hil.cli.sweep import cmd_sweep
+
+        return cmd_sweep(args)
     if args.command == "bench":
         from hil.cli.bench import cmd_bench
 

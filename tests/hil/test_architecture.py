@@ -47,6 +47,15 @@ HIL_LAYERS = {
         "hil.wiring",
         "hil.loop",
     },
+    "hil.sweep": {
+        "hil.vocabulary",
+        "hil.config",
+        "hil.output",
+        "hil.experiments",
+        "hil.wiring",
+        "hil.loop",
+        "hil.session",
+    },
     "hil.cli": {
         "hil.vocabulary",
         "hil.config",
@@ -58,6 +67,7 @@ HIL_LAYERS = {
         "hil.session",
         "hil.bench",
         "hil.identify",
+        "hil.sweep",
     },
 }
 
