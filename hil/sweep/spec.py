@@ -270,8 +270,24 @@ def _spec(raw: dict[str, Any], name: str) -> SweepSpec:
     return spec
 
 
+_PARAMETER_KEYS = {
+    "name",
+    "targets",
+    "target",
+    "values",
+    "low",
+    "high",
+    "points",
+    "log",
+    "relative",
+}
+
+
 def _parameter(raw: dict[str, Any]) -> SweepParameter:
     name = str(raw["name"])
+    unknown = sorted(set(raw) - _PARAMETER_KEYS)
+    if unknown:
+        raise SpecError(f"parameter {name!r}: unknown keys {unknown}")
     targets = raw.get("targets", raw.get("target"))
     targets = (targets,) if isinstance(targets, str) else tuple(targets or ())
     if not targets:

@@ -73,7 +73,7 @@ def run_task(task: Task, root: str) -> dict[str, Any]:
             False,
             error=detail,
             wall_time_s=time.perf_counter() - started,
-            out_dir=str(out_dir),
+            out_dir=str(out_dir) if out_dir.exists() else "",  # what it wrote, if anything
         )
     kept = task.keep_log or not result.termination.ran_its_course
     if not kept:
