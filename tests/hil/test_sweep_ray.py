@@ -88,3 +88,18 @@ def test_hil_sweep_list_names_the_shipped_specs(capsys: pytest.CaptureFixture[st
     assert main(["sweep", "--list"]) == 0
     names = [line.split()[0] for line in capsys.readouterr().out.splitlines()]
     assert {"robustness", "ringing", "smoke"} <= set(names)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_the_sweep_bench_measures_both_worker_counts_and_the_overhead() -> None:
+    pytest.importorskip("ray")
+    from hil.sweep.bench import run_bench_sweep, sweep_report_text
+
+    report = run_bench_sweep(CONFIG, runs=2)
+    rates = report["runs_per_minute"]
+    assert all(rates[key] > 0 for key in ("plain", "ray_1", "ray_2"))
+    assert report["scaling_2_over_1"] == pytest.approx(rates["ray_2"] / rates["ray_1"])
+    # the runs' own time inside a worker is part of the elapsed time, not more
+    assert report["seconds_per_run"]["ray_1_inside_run"] <= report["seconds_per_run"]["ray_1"]
+    assert "scaling 2 workers / 1" in sweep_report_text(report)
