@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.config import Config
-from hil.sweep.engine import import_ray
+from hil.sweep.engine import import_ray, start_ray
 from hil.sweep.spec import SweepSpec, Task, parse_spec, plan
 from hil.sweep.task import FAILED, run_task
 
@@ -63,7 +63,7 @@ def _checked(row: dict[str, Any]) -> dict[str, Any]:
 def _on_ray(tasks: list[Task], root: Path, cpus: int) -> dict[str, float]:
     ray = import_ray()
     started = time.perf_counter()
-    ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+    start_ray(cpus, None)
     try:
         initialised = time.perf_counter()
         remote = ray.remote(num_cpus=1, max_retries=0)(run_task)

@@ -17,6 +17,8 @@ from __future__ import annotations
 import csv
 import json
 import logging
+import signal
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -118,18 +120,27 @@ def _clock(seconds: float) -> str:
     return f"{minutes // 60}:{minutes % 60:02d}:{secs:02d}"
 
 
-def start_ray(workers: int | None, address: str | None) -> tuple[Any, bool]:
-    """Ray, initialised here (True) or already (False): local with `workers` CPUs, or the
-    cluster at `address`."""
+def start_ray(workers: int | None, address: str | None) -> None:
+    """Ray, unless already initialised: local with `workers` CPUs, or the cluster at
+    `address`."""
     ray = import_ray()
     if ray.is_initialized():
-        return ray, False
+        return
     quiet: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
     if address:
         ray.init(address=address, **quiet)
-    else:
+        return
+    # A terminal's Ctrl-C goes to the whole foreground process group, Ray's own processes
+    # included: the raylet would die on it and leave its agents behind. Started with SIGINT
+    # ignored (inherited through exec), they leave the signal to this process, which cancels
+    # the runs and shuts Ray down in order.
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:
         ray.init(num_cpus=workers, include_dashboard=False, **quiet)
-    return ray, True
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous or signal.default_int_handler)
 
 
 def execute_on_ray(
@@ -197,13 +208,14 @@ def run_sweep(
     if max_runs is not None:
         pending = pending[:max_runs]
     if pending:
-        ray, started_here = start_ray(workers, address)
+        ray = import_ray()
+        started_here = not ray.is_initialized()
         try:
-            outcome.done_now, outcome.interrupted = execute_on_ray(
-                pending, table, out_dir, ray, say
-            )
-        finally:
-            if started_here:
+            start_ray(workers, address)
+            done, interrupted = execute_on_ray(pending, table, out_dir, ray, say)
+            outcome.done_now, outcome.interrupted = done, interrupted
+        finally:  # also after Ctrl-C during ray.init: no Ray process left behind
+            if started_here and ray.is_initialized():
                 ray.shutdown()
     rows = [table.rows[t.run_id] for t in tasks if t.run_id in table]
     outcome.failed = sum(1 for row in rows if row["ending"] == FAILED)
