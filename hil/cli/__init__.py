@@ -8,6 +8,9 @@
     hil bench bus|loop [--json]
     hil monitor [--config FILE | --attach JSON] [--json] [--rate HZ] [--duration S]
     hil calibrate [--config FILE] [--attach JSON] [--seconds S] [--pose [NAME=]RAD] [--write]
+    hil identify LOG_DIR... [--json] [--config FILE] [--figure PATH]
+    hil sweep SPEC [--address ADDR] [--workers N] [--out DIR] [--list] [--json]
+    hil bench bus|loop|soak|sweep [--json]
     hil config                 print the sample configuration file
 
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
@@ -72,6 +75,14 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.calibrate import cmd_calibrate
 
         return cmd_calibrate(args)
+    if args.command == "identify":
+        from hil.cli.identify import cmd_identify
+
+        return cmd_identify(args)
+    if args.command == "sweep":
+        from hil.cli.sweep import cmd_sweep
+
+        return cmd_sweep(args)
     if args.command == "bench":
         from hil.cli.bench import cmd_bench
 

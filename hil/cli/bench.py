@@ -1,4 +1,5 @@
-"""`hil bench bus|loop|log [--json] [--cycles N] [--config F]`: measure, print the figures."""
+"""`hil bench bus|loop|log|soak|sweep [--json] [--cycles N] [--runs N] [--config F]`: measure,
+print the figures."""
 
 from __future__ import annotations
 
@@ -17,9 +18,38 @@ from hil.cli.exit_codes import ExitCode
 from hil.wiring.emulation import EmulatorStartError
 
 
+def _bench_sweep(args: argparse.Namespace) -> int:
+    """`hil bench sweep [--runs N] [--json]`: the sweep engine's throughput and overhead."""
+    from hil.sweep import RayMissing, import_ray
+    from hil.sweep.bench import DEFAULT_RUNS, run_bench_sweep, sweep_report_text
+
+    runs = args.runs or DEFAULT_RUNS
+    if runs < 2:
+        print(f"hil bench sweep: --runs must be >= 2, got {runs}", file=sys.stderr)
+        return ExitCode.USAGE
+    try:
+        import_ray()
+    except RayMissing as exc:
+        print(f"hil bench sweep: {exc}", file=sys.stderr)
+        return ExitCode.USAGE
+    config = checked_config(args.config)
+
+    def say(text: str) -> None:
+        if not args.json:
+            print(text, file=sys.stderr, flush=True)
+
+    report = run_bench_sweep(config, runs, say=say)
+    print(
+        json.dumps(without_nan(report), allow_nan=False) if args.json else sweep_report_text(report)
+    )
+    return ExitCode.OK
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     """`hil bench bus|loop|soak [--json] [--cycles N] [--seed S]`; soak exits 1 when a reaction
     missed its bound, a row was lost or an exit state was misreported."""
+    if args.what == "sweep":
+        return _bench_sweep(args)
     cycles = args.cycles
     if cycles is not None and cycles < 1:
         print(f"hil bench: --cycles must be >= 1, got {cycles}", file=sys.stderr)

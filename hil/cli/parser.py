@@ -9,7 +9,7 @@ from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
 from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
 
-BENCH_TARGETS = ("bus", "loop", "soak", "log")
+BENCH_TARGETS = ("bus", "loop", "soak", "log", "sweep")
 
 
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
@@ -105,6 +105,47 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     _add_connection_overrides(run)
 
 
+def _add_identify(sub: argparse._SubParsersAction) -> None:
+    identify = sub.add_parser(
+        "identify",
+        help="fit the joint's constants (K, D, Kp, the servo's gains) from `hil run identify` runs",
+        description="Fit gear stiffness and damping, the paper's first-order servo gain Kp (4) "
+        "and the actuator's cascade (position gain, velocity gain and integral time) to the "
+        "logs of identification runs (`hil run identify`), with 95 % intervals; print a "
+        "configuration fragment and write a fit-quality figure next to the first log.",
+    )
+    identify.add_argument("logs", nargs="+", type=Path, metavar="LOG_DIR", help="run directory")
+    identify.add_argument("--json", action="store_true", help="last stdout line: JSON result")
+    identify.add_argument(
+        "--config",
+        type=Path,
+        help="the configuration whose [model] link inertia and gravity moment the fit is told "
+        "(default: the one the run recorded)",
+    )
+    identify.add_argument(
+        "--figure", type=Path, help="the figure file (default: LOG_DIR/identification.png)"
+    )
+
+
+def _add_sweep(sub: argparse._SubParsersAction) -> None:
+    sweep = sub.add_parser(
+        "sweep",
+        help="run an experiment over a grid or Monte Carlo sample of parameters, on Ray",
+        description="Runs every (point, experiment, controller) of SPEC on Ray (this machine by "
+        "default, a cluster with --address), each through the same code as `hil run`; writes "
+        "results.csv, relations.csv, maps/*.png and summary.json to --out (default "
+        "runs/sweep-SPEC); rerunning the same command resumes.",
+    )
+    sweep.add_argument("spec", nargs="?", help="a TOML file, or a shipped spec's name (--list)")
+    sweep.add_argument("--list", action="store_true", help="name the shipped specs")
+    sweep.add_argument("--address", help="join the Ray cluster at this address")
+    sweep.add_argument("--workers", type=int, help="CPUs of the local Ray (default: all)")
+    sweep.add_argument("--out", type=Path, help="output directory (default runs/sweep-SPEC)")
+    sweep.add_argument("--config", type=Path, help="base configuration (default: built-in)")
+    sweep.add_argument("--max-runs", type=int, help="run at most N pending runs, then stop")
+    sweep.add_argument("--json", action="store_true", help="last stdout line: summary JSON")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hil",
@@ -148,6 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seed", type=int, default=0, help="soak: the faults' random seed")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
     _add_robot(bench)
+    bench.add_argument("--runs", type=int, default=None, help="sweep: runs per measurement")
+
+    _add_identify(sub)
+    _add_sweep(sub)
 
     _add_bringup(sub)
     config = sub.add_parser("config", help="print a built-in configuration file (a template)")

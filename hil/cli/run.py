@@ -9,12 +9,12 @@ import sys
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError
-from hil.experiments import get_experiment
+from hil.experiments import Experiment, get_experiment
 from hil.loop import StopFlag
 from hil.output.channels import MessageSink
 from hil.safety import ReferenceOutsideLimits
 from hil.session import Session, SessionError, Setup, run_comparison
-from hil.vocabulary import ControllerChoice
+from hil.vocabulary import ControllerChoice, ControllerKind
 
 _SINGLE_RUN_OPTIONS = (
     ("--controller", "controller"),
@@ -120,6 +120,19 @@ def _check_timeline(args: argparse.Namespace, faults: tuple, overruns: tuple) ->
             )
 
 
+def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) -> ControllerChoice:
+    """The controller of a single run; an open-loop experiment (identify) has none: the
+    actuator's own position control follows its goals, which is what `pid` names."""
+    if not experiment.open_loop:
+        return ControllerChoice(args.controller or config.controller.name, config.controller.kdist)
+    if args.controller not in (None, str(ControllerKind.PID)) or args.kdist is not None:
+        raise ConfigError(
+            f"{experiment.name} runs open loop (its own goals, no controller): drop --controller "
+            "and --kdist"
+        )
+    return ControllerChoice(ControllerKind.PID)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     config = _configured(args)
     faults, overruns = parse_injections(args.inject)
@@ -168,11 +181,10 @@ def _run(
                 stop=stop,
             )
             return ExitCode.OK if outcome.incomplete is None else ExitCode.FAILED
-        choice = ControllerChoice(
-            args.controller or config.controller.name, config.controller.kdist
-        )
+        experiment = get_experiment(args.experiment)
+        choice = _choice(args, config, experiment)
         result = session.run_one(
-            get_experiment(args.experiment),
+            experiment,
             choice,
             faults=faults,
             overruns=overruns,

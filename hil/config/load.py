@@ -98,6 +98,12 @@ def load_config(path: str | Path | None = None, *, robot: str = "testbed") -> Co
     return parse_config(text, source=str(path))
 
 
+def config_from_record(record: dict[str, Any]) -> Config:
+    """A configuration back from `Config.record()` (a run's meta.json), validated like a file."""
+    raw = {key: value for key, value in record.items() if key != "source"}
+    return _validated(raw, str(record.get("source", "<meta.json>")))
+
+
 def parse_config(text: str, source: str = "<string>") -> Config:
     try:
         raw = tomllib.loads(text)

@@ -6,6 +6,7 @@
     impact-long   the impact held a minute: the error after the push at its equilibrium
     stand         DYROS-JET's legs hold the walking-ready posture (double support)
     push          the same, pushed at the pelvis
+    identify      a chirp on the goal with the link free, open loop: the log `hil identify` fits
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
 name that does not exist.
@@ -14,10 +15,11 @@ name that does not exist.
 from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperiment, World
 from hil.experiments.contact import CONTACT, CONTACT_LONG
 from hil.experiments.humanoid import PUSH, STAND
+from hil.experiments.identify import IDENTIFY, IdentifyExperiment
 from hil.experiments.impact import IMPACT, IMPACT_LONG
 
 EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG, STAND, PUSH)
+    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG, IDENTIFY, STAND, PUSH)
 }
 # Which robot each experiment is for (`hil run NAME` picks the robot's built-in configuration).
 ROBOT_OF_EXPERIMENT: dict[str, str] = {"stand": "dyros-jet", "push": "dyros-jet"}
@@ -42,12 +44,14 @@ __all__ = [
     "CONTACT",
     "CONTACT_LONG",
     "EXPERIMENTS",
+    "IDENTIFY",
     "IMPACT",
     "IMPACT_LONG",
     "PUSH",
     "ROBOT_OF_EXPERIMENT",
     "STAND",
     "Experiment",
+    "IdentifyExperiment",
     "Obstacle",
     "Push",
     "Ramp",

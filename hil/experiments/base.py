@@ -7,6 +7,11 @@ An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
                     makes it happen; the emulator builds it from the same figures
     phase           a named phase of the experiment at a time; on a humanoid, the support state
                     (`support`) and a Kdist schedule (`kdist_at`) follow from it
+    phase           a named phase of the experiment at a time (a walk schedules Kdist by it)
+    goal_offsets    only for an open-loop experiment (identification): the goal itself, as
+                    offsets from the goal in force when the experiment starts; the loop sends
+                    them instead of stepping the controller (the supervisor still limits them)
+    parameters      what meta.json records of the experiment beyond its name
     metrics         the figures it reports, over all joints, from a run's log
     marks           what its plots mark (the obstacle, the pushes, the first contact)
     comparison      its figure across controllers, the paper's claims it checks (`relations`)
@@ -127,6 +132,23 @@ class Experiment(abc.ABC):
         """The DOB gain per joint at `time_s` when the experiment schedules it (the controller
         ramps between values), or None: the run's constant `kdist`."""
         return None
+
+    # --- open-loop goals ---------------------------------------------------------------------
+    @property
+    def open_loop(self) -> bool:
+        """True when the experiment sends its own goals (`goal_offsets`), no controller."""
+        return False
+
+    def goal_offsets(self, period_s: float, ticks: int, n_joints: int) -> np.ndarray | None:
+        """An open-loop experiment's goals on the loop's grid: ticks x n_joints offsets [rad]
+        from the goal in force when its timeline starts, row k at experiment time k * period_s.
+        None (closed loop, the default): the controller proposes the goals along the reference.
+        """
+        return None
+
+    def parameters(self) -> dict[str, Any]:
+        """What a run's meta.json records of this experiment beyond its name (JSON data)."""
+        return {}
 
     # --- after a run -----------------------------------------------------------------------
     @abc.abstractmethod

@@ -55,21 +55,14 @@ What these encoders cannot identify, and why:
   the load. It is the best (4) for the excitation's band and amplitude.
 """
 
-from hil.identify.estimation import (
-    IdentificationOptions,
-    fit_cascade,
-    fit_first_order_servo,
-    fit_gear,
-    identify,
-)
+import importlib
+
 from hil.identify.excitation import (
     ChirpExcitation,
     ExcitationTrajectory,
     chirp_goal_offsets,
     peak_motor_torque_bound_nm,
 )
-from hil.identify.models import GearParams, MotorParams, ServoParams
-from hil.identify.plots import write_identification_figure
 from hil.identify.records import (
     H54_TORQUE_CONSTANT_NM_PER_A,
     JointLog,
@@ -85,6 +78,28 @@ from hil.identify.result import (
     render_config_fragment,
     result_to_json,
 )
+
+# The fits (scipy.optimize, .signal, .stats) and the figure (matplotlib) load when first asked
+# for: the excitation and the records are all an experiment needs to run (hil run identify).
+_LAZY = {
+    "IdentificationOptions": "estimation",
+    "fit_cascade": "estimation",
+    "fit_first_order_servo": "estimation",
+    "fit_gear": "estimation",
+    "identify": "estimation",
+    "GearParams": "models",
+    "MotorParams": "models",
+    "ServoParams": "models",
+    "write_identification_figure": "plots",
+}
+
+
+def __getattr__(name: str) -> object:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+
 
 __all__ = [
     "H54_TORQUE_CONSTANT_NM_PER_A",

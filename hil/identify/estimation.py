@@ -446,6 +446,10 @@ def _current_quantum(logs: Sequence[JointLog]) -> float:
     return min(gaps) if gaps else 0.0
 
 
+CAPPED_BAND = 0.05  # readings within this fraction of the largest may be on the limit
+MIN_CAPPED_SAMPLES = 5
+
+
 def _current_limit_estimate(
     logs: Sequence[JointLog],
     data_predictions: Sequence[np.ndarray],
@@ -470,18 +474,26 @@ def _current_limit_estimate(
         [p - log.motor_current_a[1:] for log, p in zip(logs, data_predictions, strict=True)]
     )
     margin = max(4 * quantum, 4 * float(np.sqrt(np.mean(misses**2))))
-    clipped = 0
+    # Capped: a reading near the peak while the servo asked for clearly more. The readings
+    # there scatter about the limit with the current's noise, so their largest is above it by
+    # a few standard deviations: the limit is the plateau's median, its interval the median's
+    # (1.96 standard errors) widened by half a quantum for the rounding.
+    capped: list[np.ndarray] = []
     for log, predicted in zip(logs, data_predictions, strict=True):
         measured = np.abs(log.motor_current_a[1:])
-        at_peak = measured >= peak - 2 * quantum
-        clipped += int(np.count_nonzero(at_peak & (np.abs(predicted) > peak + margin)))
-    if clipped >= 5:
+        near_peak = measured >= peak - max(2 * quantum, CAPPED_BAND * peak)
+        capped.append(measured[near_peak & (np.abs(predicted) > measured + margin)])
+    plateau = np.concatenate(capped)
+    if plateau.size >= MIN_CAPPED_SAMPLES:
+        level = float(np.median(plateau))
+        # the median's standard error: sqrt(pi / 2) sigma / sqrt(n) for Gaussian scatter
+        half = 1.96 * 1.2533 * float(np.std(plateau)) / math.sqrt(plateau.size) + quantum / 2
         return ParameterEstimate(
-            peak,
-            peak - 2 * quantum,
-            peak + quantum,
+            level,
+            level - half,
+            level + half,
             Status.IDENTIFIED,
-            f"reached at {clipped} samples (the servo asked for more)",
+            f"reached at {plateau.size} samples (the servo asked for more)",
         )
     return ParameterEstimate(
         math.nan,

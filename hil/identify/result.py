@@ -186,9 +186,10 @@ def _interval_comment(estimate: ParameterEstimate) -> str:
 def render_config_fragment(result: IdentificationResult, joint_name: str = "") -> str:
     """TOML the user pastes: the controller's model of the joint, and the emulator's figures.
 
-    The first block goes into the joint's [[joint]] table (keys of hil's configuration), the
-    second is an [emulator] table whose plant/servo overrides make the emulated testbed behave
-    like the identified joint.
+    The first table is the joint's model in hil's configuration (`[model.joint.NAME]`, or
+    `[model]` without a joint name: the figures of every joint); the second an [emulator]
+    table whose plant/servo overrides make the emulated testbed behave like the identified
+    joint (merge its keys into an existing [emulator] table: TOML allows a table once).
     """
     p = result.parameters
     stiffness = p[Parameter.GEAR_STIFFNESS]
@@ -198,10 +199,11 @@ def render_config_fragment(result: IdentificationResult, joint_name: str = "") -
     velocity = p[Parameter.VELOCITY_GAIN]
     integral = p[Parameter.VELOCITY_INTEGRAL_TIME]
     current = p[Parameter.CURRENT_LIMIT]
-    who = f" '{joint_name}'" if joint_name else ""
+    table = f"[model.joint.{joint_name}]" if joint_name else "[model]"
     lines = [
         f"# Identified by `hil identify` from {', '.join(result.sources)}.",
-        f"# Paste into the [[joint]] table of joint{who}:",
+        "# The controller's model of the joint (Kim et al. (1), (4)):",
+        table,
         f"stiffness_nm_per_rad = {_fmt(stiffness.value)}  # {_interval_comment(stiffness)}",
         f"damping_nms_per_rad = {_fmt(damping.value)}  # {_interval_comment(damping)}",
         f"servo_gain_per_s = {_fmt(servo_kp.value)}  # (4): {_interval_comment(servo_kp)}",

@@ -8,7 +8,9 @@ Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends
     HOLD        hold the present position
     HOMING      the slow ramp, followed by the actuator's own position servo
     EXPERIMENT  the controller along the experiment's reference (it starts bumplessly from the
-                goal in force; it is not stepped while the supervisor holds a safe state)
+                goal in force; it is not stepped while the supervisor holds a safe state), or,
+                for an open-loop experiment (identification), the goal in force at its start
+                plus the experiment's own goal offsets, with no controller
     STOP        hold the last goal; then the configured exit torque state
 Every tick reads the bus once, so in lock-step emulation tick k is the plant at k periods.
 
@@ -48,7 +50,7 @@ from hil.loop.timeline import Phase, Timeline
 from hil.output.records import RunResult
 from hil.output.rundir import load_run
 from hil.output.runlog import RunLog
-from hil.safety import SafeState, Supervisor
+from hil.safety import ReferenceOutsideLimits, SafeState, Supervisor
 from hil.vocabulary import Reaction, RunEnding, Termination
 from hil.wiring.hardware import configured_current_limits_a
 
@@ -124,6 +126,8 @@ class Loop:
         self._kdist: np.ndarray | None = None
         self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
         self.sensor_columns = sensor_columns(config)
+        self._open_loop = self._open_loop_offsets(config.safety.max_goal_rate_rad_s)
+        self._goal_base: np.ndarray | None = None  # an open-loop experiment's goals start here
         self.log = RunLog(
             request.out_dir,
             config.joint_names,
@@ -215,6 +219,28 @@ class Loop:
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
             on_progress(tick.time_s, self.timeline.end * self.period)
 
+    def _open_loop_offsets(self, max_goal_rate_rad_s: float) -> np.ndarray | None:
+        """An open-loop experiment's goal offsets (None: closed loop), refused before anything
+        moves if they would move the goal faster than the supervisor allows (it would rewrite
+        the goals the experiment is about)."""
+        offsets = self.experiment.goal_offsets(self.period, self.timeline.experiment_ticks, self.n)
+        if offsets is None:
+            return None
+        offsets = np.asarray(offsets, dtype=float)
+        if offsets.shape != (self.timeline.experiment_ticks, self.n) or not np.all(
+            np.isfinite(offsets)
+        ):
+            raise ValueError(f"{self.experiment.name}: goal offsets not finite ticks x joints")
+        steps = np.abs(np.diff(offsets, axis=0, prepend=offsets[:1]))
+        rate = float(steps.max(initial=0.0)) / self.period
+        if rate > max_goal_rate_rad_s * (1 + 1e-9):
+            raise ReferenceOutsideLimits(
+                f"{self.experiment.name} moves the goal at up to {rate:.3f} rad/s, above "
+                f"[safety] max_goal_rate_rad_s = {max_goal_rate_rad_s:g}: the supervisor would "
+                "rewrite it; nothing was sent"
+            )
+        return offsets
+
     # --- tick 0 ------------------------------------------------------------------------------
     def _start(self, sample: JointSample) -> JointSample:
         sample = start_gate(
@@ -298,6 +324,8 @@ class Loop:
             return reference  # the actuator's own servo follows the ramp
         if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
             return None
+        if self._open_loop is not None:
+            return self._open_loop_goal(k)
         self._schedule(k, link)
         controller = self.controller
         if not self._controller_started:  # bumpless: from the goal the servo is driven with
@@ -323,6 +351,14 @@ class Loop:
             if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):
                 self.controller.set_kdist(kdist)
                 self._kdist = np.array(kdist, dtype=float)
+
+    def _open_loop_goal(self, k: int) -> np.ndarray:
+        """The goal in force when the experiment began plus its offset for tick k."""
+        assert self._open_loop is not None
+        if self._goal_base is None:
+            self._goal_base = self._last_goal.copy()
+        index = min(k - self.timeline.homing_ticks, len(self._open_loop) - 1)
+        return self._goal_base + self._open_loop[index]
 
     def _injected_overrun(self, time_s: float) -> bool:
         for start, duration in self.request.overruns:

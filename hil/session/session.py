@@ -253,6 +253,7 @@ class Session:
         return {
             "experiment": experiment.name,
             "experiment_title": experiment.title,
+            "experiment_parameters": experiment.parameters(),
             "controller": str(choice.kind),
             "controller_label": choice.label,
             "kdist": choice.kdist,

@@ -18,7 +18,7 @@ HIL_LAYERS = {
     "hil.vocabulary": set(),
     "hil.config": {"hil.vocabulary"},
     "hil.output": {"hil.vocabulary"},
-    "hil.experiments": {"hil.vocabulary", "hil.config", "hil.output"},  # robot descriptions
+    "hil.experiments": {"hil.vocabulary", "hil.config", "hil.output", "hil.identify"},
     "hil.safety": {"hil.vocabulary", "hil.config"},
     "hil.wiring": {"hil.vocabulary", "hil.config", "hil.experiments"},
     "hil.loop": {
@@ -48,6 +48,15 @@ HIL_LAYERS = {
         "hil.wiring",
         "hil.loop",
     },
+    "hil.sweep": {
+        "hil.vocabulary",
+        "hil.config",
+        "hil.output",
+        "hil.experiments",
+        "hil.wiring",
+        "hil.loop",
+        "hil.session",
+    },
     "hil.cli": {
         "hil.vocabulary",
         "hil.config",
@@ -60,6 +69,7 @@ HIL_LAYERS = {
         "hil.bench",
         "hil.identify",
         "hil.bringup",
+        "hil.sweep",
     },
 }
 

@@ -137,8 +137,8 @@ def true_link_figures(plant: PlantParams) -> tuple[float, float]:
     """Link inertia about the joint and m r of the MuJoCo model the emulator integrates.
 
     Taken from MuJoCo itself (mass matrix, gravity bias), not from TestbedPlantParams'
-    link_inertia_kg_m2 / gravity_moment_kg_m: those treat the rod as 0.7 m long, the MJCF's
-    capsule ends at 0.66 m (0.363 vs 0.376 kg m^2, 0.614 vs 0.63 kg m)."""
+    link_inertia_kg_m2 / gravity_moment_kg_m: what the emulator integrates is the truth
+    (they agree to 1e-4 since the rod reaches the load's centre, sim_backend/plant.py)."""
     from sim_backend.plant import TestbedPlant
 
     model_plant = TestbedPlant(plant, 1.0)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
+from hil.config import load_config
 from hil.identify import (
     ChirpExcitation,
     GearParams,
@@ -154,13 +155,19 @@ def test_json_holds_value_and_interval_for_the_issues_keys(result) -> None:
 def test_config_fragment_is_toml_with_the_controllers_and_emulators_keys(result) -> None:
     text = render_config_fragment(result, "testbed")
     data = tomllib.loads(text)
-    assert data["stiffness_nm_per_rad"] == pytest.approx(
+    model = data["model"]["joint"]["testbed"]
+    assert model["stiffness_nm_per_rad"] == pytest.approx(
         result[Parameter.GEAR_STIFFNESS].value, rel=1e-5
     )
-    assert data["damping_nms_per_rad"] == pytest.approx(
+    assert model["damping_nms_per_rad"] == pytest.approx(
         result[Parameter.GEAR_DAMPING].value, rel=1e-5
     )
-    assert data["servo_gain_per_s"] == pytest.approx(result[Parameter.SERVO_KP].value, rel=1e-5)
+    assert model["servo_gain_per_s"] == pytest.approx(result[Parameter.SERVO_KP].value, rel=1e-5)
+    # the configuration takes the model table as it is
+    configured = load_config().changed("model", joint=data["model"]["joint"])
+    assert configured.model.joint_figure("testbed", "stiffness_nm_per_rad") == pytest.approx(
+        model["stiffness_nm_per_rad"]
+    )
     servo = data["emulator"]["servo"]
     assert set(servo) == {
         "position_gain_per_s",

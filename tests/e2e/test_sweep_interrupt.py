@@ -1,0 +1,83 @@
+"""`hil sweep` as a user runs it: Ctrl-C in the middle (SIGINT to its whole process group, as
+a terminal sends it), then the same command again: every finished run is kept, none is run
+twice, the rest are run, and no Ray process is left behind."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("ray")
+
+SPEC = """
+title = "interrupt"
+experiments = ["impact"]
+controllers = ["pid"]
+duration_s = 2.0
+[sampling]
+method = "grid"
+[[parameter]]
+name = "Kp"
+targets = ["emulator.servo.position_gain_per_s"]
+values = [8.0, 9.0, 10.0, 11.0, 12.0, 13.0]
+"""
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    path = out / "results.csv"
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _ray_processes() -> set[str]:
+    """pid and command of every Ray process on the machine (raylet, GCS, workers)."""
+    ps = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
+    markers = ("raylet", "gcs_server", "ray::", "default_worker.py")
+    return {line.strip() for line in ps.splitlines() if any(m in line for m in markers)}
+
+
+def _new_ray_processes(before: set[str]) -> set[str]:
+    """Ray processes started since `before` still running after a grace period."""
+    deadline = time.monotonic() + 20
+    while (left := _ray_processes() - before) and time.monotonic() < deadline:
+        time.sleep(0.5)
+    return left
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_ctrl_c_then_the_same_command_resumes_without_repeating(tmp_path: Path) -> None:
+    spec, out = tmp_path / "interrupt.toml", tmp_path / "out"
+    spec.write_text(SPEC)
+    command = [sys.executable, "-m", "hil", "sweep", str(spec), "--workers", "1", "--out", str(out)]
+    ray_before = _ray_processes()
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    deadline = time.monotonic() + 300
+    while len(_rows(out)) < 2 and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.2)
+    os.killpg(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 1, err
+    before = _rows(out)
+    assert 2 <= len(before) < 6, err
+    assert not _new_ray_processes(ray_before)  # the interrupted sweep shut Ray down
+
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    after = _rows(out)
+    assert after[: len(before)] == before  # kept as they were
+    assert len(after) == 6 and len({r["run_id"] for r in after}) == 6  # none twice, none lost
+    assert f"{len(before)} done before, {6 - len(before)} to run" in again.stderr
+    assert all(r["ending"] == "completed" for r in after)
+    assert not _new_ray_processes(ray_before)
