@@ -97,8 +97,12 @@ def valid_instruction(draw: st.DrawFn) -> bytes:
         )
     if kind == "sync_write":
         entries = b"".join(bytes((i, draw(st.integers(0, 255)))) for i in IDS)
-        return build_instruction_packet(0xFE, Instruction.SYNC_WRITE, bytes((0x33, 0x02, 1, 0)) + entries)
-    instruction = draw(st.sampled_from([0x04, 0x05, 0x06, 0x10, 0x20, 0x8A, 0x92, 0x93, 0x9A, 0x77]))
+        return build_instruction_packet(
+            0xFE, Instruction.SYNC_WRITE, bytes((0x33, 0x02, 1, 0)) + entries
+        )
+    instruction = draw(
+        st.sampled_from([0x04, 0x05, 0x06, 0x10, 0x20, 0x8A, 0x92, 0x93, 0x9A, 0x77])
+    )
     params = draw(st.binary(max_size=12))
     return build_instruction_packet(dxl_id, instruction, params)
 
@@ -274,8 +278,12 @@ def test_garbage_never_corrupts_a_control_table_and_is_followed_by_exact_answers
     for device in chain.devices:
         if device.item("Status Return Level") != 2 or device.item("ID") not in IDS:
             return  # a valid WRITE in the stream changed how it answers: nothing left to check
-    write = build_instruction_packet(1, Instruction.WRITE, LED_RED.to_bytes(2, "little") + bytes((led,)))
-    read = build_instruction_packet(1, Instruction.READ, LED_RED.to_bytes(2, "little") + b"\x01\x00")
+    write = build_instruction_packet(
+        1, Instruction.WRITE, LED_RED.to_bytes(2, "little") + bytes((led,))
+    )
+    read = build_instruction_packet(
+        1, Instruction.READ, LED_RED.to_bytes(2, "little") + b"\x01\x00"
+    )
     replies = []
     for packet in parser.feed(write + read, 2.0):
         replies += [reply for _, reply in chain.handle(packet, 2.0)]
