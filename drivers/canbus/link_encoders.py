@@ -79,6 +79,15 @@ _TPDO_COB_ID_BASES = (0x180, 0x280, 0x380, 0x480)
 _INT32 = struct.Struct("<i")
 _UNKNOWN_STATE = 0xFF
 _NOTIFIER_POLL_S = 0.005
+# CiA 301 frame lengths canopen's handlers rely on, by function code (COB-ID & 0x780), for
+# the COB-IDs a RemoteNode subscribes to: NMT 0x000, EMCY 0x080+id, SDO 0x580+id, 0x700+id.
+_FUNCTION_CODE_MASK = 0x780
+_MIN_FRAME_BYTES = {
+    0x000: 2,  # NMT command: command specifier, node ID
+    0x080: 8,  # EMCY: error code, error register, 5 bytes manufacturer data
+    0x580: 8,  # SDO response
+    0x700: 1,  # heartbeat / boot-up: the state byte
+}
 _MAX_FRAMES_PER_DRAIN = 1024
 
 
@@ -305,7 +314,7 @@ class LinkEncoderReader:
             return
         index = self._tpdo_device.get(msg.arbitration_id)
         if index is None:  # NMT heartbeat, EMCY, SDO: canopen's handlers (callbacks below)
-            self._network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+            self._notify_canopen(msg)
             return
         device = self._devices[index]
         if len(msg.data) < 4:
@@ -320,6 +329,28 @@ class LinkEncoderReader:
             self._answered[index] = True
             self._n_answered += 1
         self._answer_raw[index] = _INT32.unpack_from(msg.data)[0]
+
+    def _notify_canopen(self, msg: can.Message) -> None:
+        """Hand a frame to canopen's handlers, unless it is too short for them.
+
+        canopen unpacks these frames with `struct` and raises on a short one (an empty
+        heartbeat, a 2-byte EMCY): on the tick path that would end the run, so a frame shorter
+        than CiA 301 defines is logged as an event and dropped here.
+        """
+        cob_id = msg.arbitration_id
+        if cob_id not in self._network.subscribers:
+            return  # nobody listens (another node's frames, SYNC, PDOs we do not use)
+        needed = _MIN_FRAME_BYTES.get(cob_id & _FUNCTION_CODE_MASK)
+        if needed is not None and len(msg.data) < needed:
+            self._events.append(
+                f"malformed frame 0x{cob_id:03X} with {len(msg.data)} byte(s) ignored "
+                f"(CiA 301 defines {needed})"
+            )
+            return
+        try:
+            self._network.notify(cob_id, msg.data, msg.timestamp)
+        except (struct.error, ValueError, KeyError, IndexError) as error:
+            self._events.append(f"frame 0x{cob_id:03X} [{bytes(msg.data).hex()}] ignored: {error}")
 
     def _on_heartbeat(self, index: int, state: int) -> None:
         """canopen heartbeat callback (Notifier thread during open, else collect's thread)."""
