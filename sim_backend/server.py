@@ -37,6 +37,7 @@ import can
 import numpy as np
 
 from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, SlcanPty
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
 from sim_backend.dynamixel import (
     BAUD_RATE_BPS,
     DynamixelChain,
@@ -81,6 +82,7 @@ class EmulatorSpec:
     scenario: Scenario = field(default_factory=Scenario)
     reboot_time_s: float = 0.5
     heartbeat_ms: int = 100
+    can_bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S  # a CAN node's restart after NMT reset
 
     def __post_init__(self) -> None:
         if not self.joints:
@@ -137,6 +139,7 @@ class Emulator:
                     direction=joint_spec.encoder_direction,
                     heartbeat_ms=spec.heartbeat_ms,
                     seed=spec.seed * 7919 + index,
+                    bootup_delay_s=spec.can_bootup_delay_s,
                 )
             )
         self.encoders: list[LinkEncoderNode] = list(nodes)
@@ -147,6 +150,7 @@ class Emulator:
                 lambda: sum(j.plant.contact_force_n() for j in self.joints),
                 heartbeat_ms=spec.heartbeat_ms,
                 seed=spec.seed * 7919 + 999,
+                bootup_delay_s=spec.can_bootup_delay_s,
             )
             nodes.append(self.force_sensor)
         self.testbed = VirtualTestbed(self.joints)
@@ -197,6 +201,9 @@ class Emulator:
             due = line.next_due_s()
             if due is not None:
                 timeout = min(timeout, max(0.0, due - now))
+            can_due = self.segment.next_due_s()  # boot-up, heartbeat: on the nodes' clock
+            if can_due is not None:
+                timeout = min(timeout, max(0.0, can_due - self._node_time()))
             if self.realtime:
                 timeout = min(timeout, max(0.0, next_physics - now))
             try:

@@ -26,6 +26,7 @@ from drivers.canbus import (
     link_angle_rad_from_counts,
 )
 from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, NodeRunner
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
 from sim_backend.canbus.testing import serve_in_background
 
 pytestmark = pytest.mark.timeout(30)
@@ -47,6 +48,9 @@ class Rig:
         self.nodes = nodes
         self.node_bus = can.Bus(interface="virtual", channel=channel)
         self.runner = NodeRunner(self.node_bus, CanSegment(nodes))
+        # The nodes were powered before the reader came: their power-on boot-up is history
+        # (had it arrived after the reader's NMT reset, it would pass for the reset's answer).
+        self.runner.pump(self.now_s)
         self.reader = LinkEncoderReader(
             can.Bus(interface="virtual", channel=channel),
             encoders,
@@ -57,8 +61,21 @@ class Rig:
         self.description = f"virtual {channel}"
 
     def serve_while(self, action) -> None:  # noqa: ANN001 - a zero-argument callable
-        with serve_in_background(self.runner, lambda: self.now_s):
+        """Serve the nodes while `action` blocks (canopen's SDO client); the shared clock runs
+        in real time meanwhile, so that a node booting after an NMT reset gets there."""
+        base_s, started = self.now_s, time.monotonic()
+
+        def running_clock() -> float:
+            self.now_s = max(self.now_s, base_s + time.monotonic() - started)
+            return self.now_s
+
+        with serve_in_background(self.runner, running_clock):
             action()
+        # Lock-step ticks resume on a fixed grid whatever the real time the action took, so
+        # that sessions stay deterministic: the next multiple of 10 s.
+        self.now_s = 10.0 * (math.floor(base_s / 10.0) + 1)
+        assert self.now_s > base_s + time.monotonic() - started, "serving took over 10 s"
+        self.runner.pump(self.now_s)  # the heartbeats overdue after the jump go out now
 
     def open(self) -> None:
         self.serve_while(self.reader.open)
@@ -290,10 +307,11 @@ def test_reboot_is_reported_and_recover_node_restores_it(testbeds) -> None:
     testbed.open()
     nodes[1].fault.mode = "dead"
     testbed.tick()
-    nodes[1].fault.mode = "ok"  # power returns: boot-up, Pre-operational, defaults
-    events = testbed.tick().events
-    reading = testbed.tick()
-    events += reading.events
+    nodes[1].fault.mode = "ok"  # power returns: boot-up after its delay, Pre-op, defaults
+    events: tuple[str, ...] = ()
+    for _ in range(2 + math.ceil(DEFAULT_BOOTUP_DELAY_S / TICK_S)):
+        reading = testbed.tick()
+        events += reading.events
     assert any("node 6" in event and "boot-up" in event for event in events)
     assert reading.nmt_state == ("OPERATIONAL", "PRE-OPERATIONAL")
     assert reading.valid.tolist() == [True, False]
