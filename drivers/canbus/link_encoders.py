@@ -21,11 +21,14 @@ queue):
      Operational (0x05).
 Every failure names the node, the bus, and what was expected.
 
-Timing: `collect()` returns within `timeout_s` plus the interface's receive granularity
-(python-can's slcan polls its serial port with a 1 ms timeout by default, so up to ~1.5 ms
-late was measured; `virtual` is prompt). In-process lock-step: send_sync(), then pump the
-emulated nodes, then collect(). An emulator that only advances its clock on SYNC still lets
-open() finish: the nodes answer NMT and SDO at once and announce a state change by heartbeat.
+Waiting: where the bus offers a file descriptor (python-can's `fileno()`: slcan's serial port,
+socketcan's socket), the reader sleeps in `select()` until bytes arrive and then takes the
+frames with `recv(timeout=0)`, as python-can's own asyncio Notifier does. So it neither spins
+nor depends on the slcan `timeout` keyword, which is the serial port's read timeout: python-can's
+slcan `recv()` blocks that long in every empty read (1 ms by default: a whole tick's worth of
+empty polls in lock-step) and spins a core when it is 0. Buses without a descriptor (`virtual`)
+are read with `recv(timeout)`. `collect()` returns within `timeout_s` plus the scheduler's
+latency. In-process lock-step: send_sync(), then pump the emulated nodes, then collect().
 
 Units: counts -> radians in `units.link_angle_rad_from_counts` and PV -> N in
 `units.force_n_from_counts`, nowhere else. The TPDO bytes are decoded as a little-endian INTEGER32
@@ -37,6 +40,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import select
 import struct
 import threading
 import time
@@ -147,6 +151,7 @@ class LinkEncoderReader:
                 f"got {heartbeat_timeout_factor}"
             )
         self._bus = bus
+        self._fd = _selectable_fileno(bus)
         self._clock = clock
         self.bus_description = bus_description or f"{type(bus).__name__} ({bus.channel_info})"
         self._sdo_timeout_s = sdo_timeout_s
@@ -277,7 +282,6 @@ class LinkEncoderReader:
             raise CanDeviceError(f"collect() on {self.bus_description} without send_sync() first")
         n_devices = len(self._devices)
         deadline = time.monotonic() + timeout_s
-        recv = self._bus.recv
         overdue_frames = 0
         while self._n_answered < n_devices:
             remaining = deadline - time.monotonic()
@@ -287,7 +291,7 @@ class LinkEncoderReader:
                 overdue_frames += 1
                 if overdue_frames > _MAX_FRAMES_PER_DRAIN:
                     break
-            msg = recv(timeout=max(remaining, 0.0))
+            msg = self._receive(deadline)
             if msg is None:
                 break
             self._dispatch(msg)
@@ -300,11 +304,29 @@ class LinkEncoderReader:
         return self.collect(timeout_s)
 
     # --- receive path (no thread) ----------------------------------------------------------
+    def _receive(self, deadline: float) -> can.Message | None:
+        """The next frame, waiting until `deadline` (time.monotonic) at most; None if none came.
+
+        With a file descriptor: sleep in select() until bytes arrive, then recv(timeout=0),
+        which then returns without waiting; bytes that were no frame (slcan's acknowledgement
+        of our own transmission, half a line) send it back to sleep.
+        """
+        fd = self._fd
+        if fd is None:
+            return self._bus.recv(timeout=max(deadline - time.monotonic(), 0.0))
+        for _ in range(_MAX_FRAMES_PER_DRAIN):
+            wait_s = max(deadline - time.monotonic(), 0.0)
+            if not select.select((fd,), (), (), wait_s)[0]:
+                return None
+            msg = self._bus.recv(timeout=0.0)
+            if msg is not None:
+                return msg
+        return None  # a babbling port: give the tick back
+
     def _drain(self) -> None:
         """Handle the frames already received (bounded, so a flooded bus cannot hang a tick)."""
-        recv = self._bus.recv
         for _ in range(_MAX_FRAMES_PER_DRAIN):
-            msg = recv(timeout=0.0)
+            msg = self._receive(deadline=0.0)  # only what is there now
             if msg is None:
                 return
             self._dispatch(msg)
@@ -661,6 +683,16 @@ class LinkEncoderReader:
         raise ValueError(
             f"node {node_id} is not configured on {self.bus_description} (known: {known})"
         )
+
+
+def _selectable_fileno(bus: can.BusABC) -> int | None:
+    """The bus's file descriptor if it has one to select() on (python-can's convention, as its
+    Notifier uses it), else None."""
+    try:
+        fd = bus.fileno()
+    except (NotImplementedError, can.CanError, OSError, ValueError):
+        return None
+    return fd if isinstance(fd, int) and fd >= 0 else None
 
 
 def _state_name(state: int) -> str:
