@@ -37,7 +37,8 @@ def test_a_tick_does_not_cost_the_serial_read_timeout() -> None:
             reader.close()
     median_s = statistics.median(ticks_s)
     print(
-        f"\nSYNC -> TPDO with slcan timeout {LONG_SERIAL_TIMEOUT_S} s: median {median_s * 1e3:.2f} ms"
+        f"\nSYNC -> TPDO with slcan timeout {LONG_SERIAL_TIMEOUT_S} s: "
+        f"median {median_s * 1e3:.2f} ms"
     )
     assert median_s < LONG_SERIAL_TIMEOUT_S / 2
 
