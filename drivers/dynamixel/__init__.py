@@ -15,7 +15,12 @@ from drivers.dynamixel.chain import (
 )
 from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
 from drivers.dynamixel.control_table import MODELS, ControlItem, ModelSpec, model_spec
-from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, EepromChangeRefused
+from drivers.dynamixel.errors import (
+    DeviceShutdownError,
+    DynamixelReplyError,
+    EepromChangeRefused,
+    PortGoneError,
+)
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.scan import FoundDevice, scan
 from drivers.dynamixel.units import H54_200_S500_R_UNITS, DeviceUnits
@@ -39,6 +44,7 @@ __all__ = [
     "HardwareErrorStatus",
     "LowLatencyPortHandler",
     "ModelSpec",
+    "PortGoneError",
     "bench_bus",
     "model_spec",
     "open_port",

@@ -25,6 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from dynamixel_sdk import COMM_RX_CORRUPT, COMM_SUCCESS
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
@@ -380,3 +381,22 @@ def test_scan_returns_only_what_answered_or_a_bus_error(new_rig: Callable[[], Ri
         assert [d.dxl_id for d in found] == sorted({d.dxl_id for d in found})
 
     check()
+
+
+def test_a_short_reply_is_not_read_as_data(new_rig: Callable[[], Rig]) -> None:
+    """What the fuzzing found: a CRC-good status with 2 data bytes answering a 4-byte READ was
+    returned as a value whose upper half was the packet's CRC (the SDK's readRx does not check
+    LEN). Also a PING reply without its 3 parameters."""
+    rig = new_rig()
+    io = rig.chain._io
+    assert io is not None
+    short = build_status_packet(1, 0, b"\x00\x00")
+    rig.wire.mangle = lambda replies: [(0.0, short)]
+    with pytest.raises(BusError, match="answered with 2 data bytes, expected 4"):
+        io.read_item(1, rig.chain.spec.item("Present Position"))
+    rig.wire.quiet()
+    rig.wire.mangle = lambda replies: [(0.0, build_status_packet(1, 0, b""))]
+    assert io.ping(1) == (0, COMM_RX_CORRUPT)
+    rig.wire.mangle = None
+    rig.wire.quiet()
+    assert io.ping(1) == (54024, COMM_SUCCESS)
