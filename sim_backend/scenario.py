@@ -42,8 +42,21 @@ class FaultEvent:
             raise ValueError(
                 f"unknown emulator fault {self.kind!r}; choose one of {list(EMULATOR_FAULTS)}"
             )
-        if self.start_s < 0 or (self.duration_s is not None and self.duration_s <= 0):
-            raise ValueError(f"fault {self.kind}: start must be >= 0 and duration > 0")
+        # `not (x >= 0)` also refuses NaN, which compares false with everything: a fault at NaN
+        # would silently never fire.
+        duration_ok = self.duration_s is None or (
+            math.isfinite(self.duration_s) and self.duration_s > 0
+        )
+        if not (math.isfinite(self.start_s) and self.start_s >= 0) or not duration_ok:
+            raise ValueError(
+                f"fault {self.kind}: start must be a finite time >= 0 s and duration a finite "
+                f"time > 0 s, got start {self.start_s!r}, duration {self.duration_s!r}"
+            )
+        if not (math.isfinite(self.noise_counts_rms) and self.noise_counts_rms >= 0):
+            raise ValueError(
+                f"fault {self.kind}: noise_counts_rms must be finite and >= 0, "
+                f"got {self.noise_counts_rms!r}"
+            )
 
     @property
     def end_s(self) -> float:

@@ -22,6 +22,7 @@ The first line on stdout is one JSON object telling a host how to reach the buse
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -160,6 +161,7 @@ class Emulator:
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
         self.sync_count = 0
         self._fired: set[int] = set()
+        self._started: set[int] = set()  # scenario fault events that were active at least once
         self._running = False
         self._wall_origin = time.monotonic()
 
@@ -187,6 +189,17 @@ class Emulator:
             "clock": self.spec.clock,
             "period_s": self.spec.period_s,
             "seed": self.spec.seed,
+        }
+
+    def fault_counts(self) -> dict[str, Any]:
+        """How often each injected fault acted: a run can show that every fault it injected
+        really happened. Scenario fault events are numbered as in `spec.scenario.faults`."""
+        return {
+            "scenario_faults_started": sorted(self._started),
+            "dynamixel": dataclasses.asdict(self.chain.faults.fired),
+            "encoders": {
+                str(node.node_id): dataclasses.asdict(node.fault_counts) for node in self.encoders
+            },
         }
 
     # --- the event loop --------------------------------------------------------------------
@@ -271,6 +284,7 @@ class Emulator:
         for number, event in enumerate(self.spec.scenario.faults):
             if now is None or not event.start_s <= now < event.end_s:
                 continue
+            self._started.add(number)
             dxl_id = self.spec.joints[event.joint].dxl_id
             if event.kind in ONE_SHOT_FAULTS and event.duration_s is None:
                 if number not in self._fired:
@@ -344,13 +358,17 @@ def _with_obstacle(
 
 
 def serve(spec: EmulatorSpec, out: TextIO = sys.stdout, extra: dict | None = None) -> None:
-    """Build the emulator, print its endpoints as one JSON line, serve until SIGINT/SIGTERM."""
+    """Build the emulator, print its endpoints as one JSON line, serve until SIGINT/SIGTERM,
+    then print one more JSON line, {"fault_counts": Emulator.fault_counts()}."""
     emulator = Emulator(spec)
     previous = {sig: signal.signal(sig, emulator.stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         out.write(json.dumps({**emulator.endpoints(), **(extra or {})}) + "\n")
         out.flush()
         emulator.run()
+        with contextlib.suppress(OSError, ValueError):  # nobody reads any more: fine
+            out.write(json.dumps({"fault_counts": emulator.fault_counts()}) + "\n")
+            out.flush()
     finally:
         emulator.close()
         for sig, handler in previous.items():

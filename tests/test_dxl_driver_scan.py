@@ -52,6 +52,7 @@ def test_scan_pings_one_by_one_what_the_broadcast_missed() -> None:
         # broadcast, the per-ID PING of the requested range finds it.
         emu.faults(corrupt_next_replies=1)
         found = scan(emu.port_path, BAUD_4M, ids=range(0, 8), latency_timer_ms=SLOW_MS)
+        assert emu.fault_counts()["replies_corrupted"] == 1  # the fault really fired
         assert [device.dxl_id for device in found] == [1, 2, 5]
         assert all(device.model_number == 54024 for device in found)
         # Restricting the IDs restricts the result.
@@ -60,9 +61,12 @@ def test_scan_pings_one_by_one_what_the_broadcast_missed() -> None:
         # Nothing answers the broadcast (all silent): the whole range is pinged (with the
         # default 1 ms latency: 4 ms per ID), nothing found.
         emu.faults(silent_ids={1, 2, 5})
+        unheard_before = emu.fault_counts()["instructions_unheard"]
         start = time.perf_counter()
         assert scan(emu.port_path, BAUD_4M) == []
         elapsed_s = time.perf_counter() - start
+        # each silent device missed the broadcast PING and its own PING
+        assert emu.fault_counts()["instructions_unheard"] - unheard_before == 2 * 3
     print(f"\nscan of an empty bus (broadcast + 253 pings): {elapsed_s:.3f} s")
     assert elapsed_s < 5.0
 

@@ -118,6 +118,20 @@ class SensorFault:
             )
 
 
+@dataclass
+class SensorFaultCounts:
+    """How often the node's fault actually acted (history, never reset by the node).
+
+    frames_ignored_while_dead: frames on the bus the node did not hear because it had no power.
+    stale_samples: process values served frozen (SYNC answers and SDO reads) while "stale".
+    noisy_samples: process values that got noise added while "noisy".
+    """
+
+    frames_ignored_while_dead: int = 0
+    stale_samples: int = 0
+    noisy_samples: int = 0
+
+
 def wrap_int32(value: int) -> int:
     """Two's-complement wrap of a counter to the INTEGER32 range, like a 32-bit register."""
     return ((value + 0x8000_0000) & 0xFFFF_FFFF) - 0x8000_0000
@@ -162,6 +176,7 @@ class CanopenSlave(abc.ABC):
             )
         self.node_id = node_id
         self.fault = SensorFault()
+        self.fault_counts = SensorFaultCounts()
         self._store = ObjectStore(eds_file, node_id)
         self._store.set_default(_HEARTBEAT_TIME, 0, heartbeat_ms)
         self._store.set_default(_TPDO_COMMUNICATION, 2, tpdo_transmission_type)
@@ -223,8 +238,11 @@ class CanopenSlave(abc.ABC):
     def handle(self, msg: can.Message, now_s: float) -> list[can.Message]:
         """Frames this node sends in answer to `msg` (seen on the bus at `now_s`)."""
         out = self._prologue(now_s)
-        if not self._powered or self._boot_due_us is not None:
-            return out  # no power, or still initialising: deaf
+        if not self._powered:
+            self.fault_counts.frames_ignored_while_dead += 1
+            return out
+        if self._boot_due_us is not None:
+            return out  # still initialising: deaf
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             return out
         cob_id = msg.arbitration_id
@@ -276,6 +294,7 @@ class CanopenSlave(abc.ABC):
     def _sample_raw(self) -> int:
         """The process value now, in raw units, with the fault applied (the read hook)."""
         if self._frozen_raw is not None:
+            self.fault_counts.stale_samples += 1
             return self._frozen_raw
         exact = self._ideal_raw()
         if not math.isfinite(exact):
@@ -284,6 +303,7 @@ class CanopenSlave(abc.ABC):
             )
         if self.fault.mode == "noisy" and self.fault.noise_counts_rms > 0.0:
             exact += float(self._rng.normal(0.0, self.fault.noise_counts_rms))
+            self.fault_counts.noisy_samples += 1
         raw = wrap_int32(math.floor(exact + 0.5))  # round half up
         self._last_sample_raw = raw
         return raw
