@@ -2,7 +2,7 @@
 
 - `DynamixelChain`: a chain of actuators on one port (state block by one sync read, goals by one
   sync write, enable / disable / reboot, hardware-error reporting), SI units at its interface.
-- `scan`: which devices answer on a port.
+- `scan` / `scan_bauds`: which devices answer on a port (progress callback, time budget).
 - `bench_bus`: the chain's tick against a bare SDK loop.
 """
 
@@ -22,7 +22,14 @@ from drivers.dynamixel.errors import (
     PortGoneError,
 )
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
-from drivers.dynamixel.scan import FoundDevice, scan
+from drivers.dynamixel.scan import (
+    FoundDevice,
+    ScanProgress,
+    ScanReport,
+    ScanStep,
+    scan,
+    scan_bauds,
+)
 from drivers.dynamixel.units import H54_200_S500_R_UNITS, DeviceUnits
 
 __all__ = [
@@ -45,8 +52,12 @@ __all__ = [
     "LowLatencyPortHandler",
     "ModelSpec",
     "PortGoneError",
+    "ScanProgress",
+    "ScanReport",
+    "ScanStep",
     "bench_bus",
     "model_spec",
     "open_port",
     "scan",
+    "scan_bauds",
 ]
