@@ -15,6 +15,7 @@ from collections.abc import Iterator
 import can
 import numpy as np
 import pytest
+from load_conditions import timing_is_unreliable
 
 from drivers.canbus import (
     CanDeviceError,
@@ -277,8 +278,12 @@ def test_dead_node_invalid_growing_age_and_no_blocking_past_the_timeout(testbeds
         stale.append(bool(reading.stale[0]))
         lost.append(bool(reading.heartbeat_lost[0]))
         assert not reading.heartbeat_lost[1]
-    # waits its timeout, not more (slack for a loaded 2-core machine in the max)
-    assert np.median(elapsed) < timeout_s + 0.005 and max(elapsed) < timeout_s + 0.1
+    # waits its timeout, not more (slack for a loaded 2-core machine in the max; more, and
+    # why, when it is loaded)
+    reason = timing_is_unreliable(client_spins=True)
+    slack_s = (0.005, 0.1) if reason is None else (0.05, 1.0)
+    assert np.median(elapsed) < timeout_s + slack_s[0], reason
+    assert max(elapsed) < timeout_s + slack_s[1], reason
     np.testing.assert_allclose(ages[:4], [0.005, 0.010, 0.015, 0.020], atol=1e-9)
     assert all(later > earlier for earlier, later in zip(ages, ages[1:], strict=False))
     assert stale[:3] == [False, False, False] and all(stale[5:])  # stale_after_s = 0.02
@@ -381,6 +386,7 @@ def test_close_can_stop_the_nodes_and_always_releases_the_bus(testbeds) -> None:
         testbed.reader.close(nmt_command="OFF")
 
 
+@pytest.mark.timing
 def test_round_trip_latency_in_process(testbeds) -> None:
     """SYNC -> all TPDOs, lock-step on the virtual bus (2 encoders + force sensor)."""
     nodes = [
@@ -403,7 +409,8 @@ def test_round_trip_latency_in_process(testbeds) -> None:
         assert reading.all_valid
     median, p99 = np.percentile(round_trips, [50, 99]) * 1e3
     print(f"\nin-process lock-step SYNC -> 3 TPDOs: median {median:.3f} ms, p99 {p99:.3f} ms")
-    assert median < 5.0  # fits a 200 Hz tick with room to spare
+    reason = timing_is_unreliable(client_spins=True)  # one process: the load is what counts
+    assert median < (5.0 if reason is None else 50.0), reason  # fits a 200 Hz tick
 
 
 def test_node_without_heartbeat_is_read_but_its_state_is_not_monitored(testbeds) -> None:

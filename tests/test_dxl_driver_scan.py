@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from load_conditions import FUNCTIONAL_LATENCY_TIMER_MS, timing_is_unreliable
 
 from drivers.dynamixel import (
     DynamixelChain,
@@ -22,9 +23,9 @@ pytestmark = pytest.mark.timeout(60)
 
 BAUD_4M = 4_000_000
 H54 = (54024, "H54-200-S500-R")
-# The emulator process is now and then descheduled for 3-10 ms on this shared 2-core VM: where
-# an answer is expected, use a timeout as generous as the SDK's own (2 x 20 ms + 2 ms).
-SLOW_MS = 20.0
+# The emulator process is now and then descheduled for milliseconds on this shared 2-core VM:
+# where an answer is expected, use a generous reply timeout (tests/load_conditions.py).
+SLOW_MS = FUNCTIONAL_LATENCY_TIMER_MS  # tests/load_conditions.py
 
 
 def test_scan_finds_every_device_with_one_broadcast_ping() -> None:
@@ -61,6 +62,7 @@ def test_scan_pings_one_by_one_what_the_broadcast_missed() -> None:
         # Nothing answers the broadcast (all silent): the whole range is pinged (with the
         # default 1 ms latency: 4 ms per ID), nothing found.
         emu.faults(silent_ids={1, 2, 5})
+        reason = timing_is_unreliable(bool(emu.stats()["sched_fifo"]), client_spins=True)
         unheard_before = emu.fault_counts()["instructions_unheard"]
         start = time.perf_counter()
         assert scan(emu.port_path, BAUD_4M) == []
@@ -68,7 +70,7 @@ def test_scan_pings_one_by_one_what_the_broadcast_missed() -> None:
         # each silent device missed the broadcast PING and its own PING
         assert emu.fault_counts()["instructions_unheard"] - unheard_before == 2 * 3
     print(f"\nscan of an empty bus (broadcast + 253 pings): {elapsed_s:.3f} s")
-    assert elapsed_s < 5.0
+    assert elapsed_s < (5.0 if reason is None else 30.0), reason
 
 
 def test_scan_refuses_a_port_it_cannot_open() -> None:
@@ -78,6 +80,7 @@ def test_scan_refuses_a_port_it_cannot_open() -> None:
         scan("/dev/no-such-tty", BAUD_4M, ids=[300])
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("n_devices", [1, 12])
 def test_bench_bus_chain_against_bare_sdk_loop(n_devices: int) -> None:
     ids = tuple(range(1, n_devices + 1))
@@ -94,9 +97,11 @@ def test_bench_bus_chain_against_bare_sdk_loop(n_devices: int) -> None:
         with DynamixelChain(config) as chain:
             chain.enable()
             result = bench_bus(chain, cycles=400, warmup=50)
+            reason = timing_is_unreliable(bool(emu.stats()["sched_fifo"]), client_spins=True)
             assert chain.read_state().torque_enabled.all()  # the bench changed no torque
     print("\n" + result.summary())
     assert result.n_devices == n_devices and result.chain.cycles == 400
     # Generous sanity bounds only (a loaded 2-core VM); the figures go into the report.
     assert result.chain.failures <= 4 and result.bare.failures <= 4
-    assert 0.0 < result.chain.median_s < 0.005 and 0.0 < result.bare.median_s < 0.005
+    bound_s = 0.005 if reason is None else 0.05
+    assert 0.0 < result.chain.median_s < bound_s and 0.0 < result.bare.median_s < bound_s, reason

@@ -18,8 +18,8 @@ from dynamixel_sdk import (
     GroupSyncRead,
     GroupSyncWrite,
     PacketHandler,
-    PortHandler,
 )
+from load_conditions import PatientPortHandler
 
 from sim_backend.dynamixel.protocol import (
     Instruction,
@@ -68,7 +68,7 @@ class Bus:
 
     def __init__(self, emu: EmulatedChain, baud: int = BAUD_4M) -> None:
         self.emu = emu
-        self.port = PortHandler(emu.port_path)
+        self.port = PatientPortHandler(emu.port_path)
         self.ph = PacketHandler(2.0)
         assert self.port.openPort(), f"could not open {emu.port_path}"
         assert self.port.setBaudRate(baud)

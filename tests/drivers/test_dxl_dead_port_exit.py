@@ -23,12 +23,13 @@ from drivers.dynamixel import (
 from drivers.dynamixel.port import LowLatencyPortHandler
 from drivers.joint_bus import BusError
 from sim_backend.dynamixel.testing import spawn_emulated_chain
+from tests.load_conditions import FUNCTIONAL_LATENCY_TIMER_MS
 
 pytestmark = pytest.mark.timeout(60)
 
 IDS = (1, 2)
 # Generous reply timeout: the emulator is another process on a shared machine.
-LATENCY_MS = 20.0
+LATENCY_MS = FUNCTIONAL_LATENCY_TIMER_MS
 
 
 def make_config(port: str) -> DynamixelChainConfig:
