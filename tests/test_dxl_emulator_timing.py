@@ -18,7 +18,7 @@ from functools import partial
 
 import pytest
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, PacketHandler, PortHandler
-from load_conditions import timing_is_unreliable
+from load_conditions import PatientPortHandler, timing_is_unreliable
 
 from sim_backend.dynamixel.testing import spawn_emulated_chain
 
@@ -167,7 +167,7 @@ def test_instant_mode_round_trips() -> None:
     ids = tuple(range(1, 13))
     with spawn_emulated_chain(ids=ids, baud_index=6) as emu:
         sched_fifo = bool(emu.stats()["sched_fifo"])
-        port = PortHandler(emu.port_path)
+        port = PatientPortHandler(emu.port_path)  # a late reply is slow, not lost
         ph = PacketHandler(2.0)
         assert port.openPort() and port.setBaudRate(4_000_000)
         one = GroupSyncRead(port, ph, PRESENT_POSITION_ADDR, 12)
