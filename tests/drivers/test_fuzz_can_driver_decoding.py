@@ -116,7 +116,7 @@ def rig() -> Iterator[Rig]:
 
 
 def test_collect_decodes_any_frames_truthfully(rig: Rig) -> None:
-    @examples(200)
+    @examples(100)
     @given(frames=st.lists(any_frame(), max_size=25))
     # What the first run found: canopen's handlers raised struct.error on these (fixed in
     # LinkEncoderReader._notify_canopen).

@@ -274,7 +274,7 @@ def same_where_valid(state, reference) -> None:  # noqa: ANN001 - DynamixelState
 
 
 def test_read_state_survives_any_reply_bytes(new_rig: Callable[[], Rig]) -> None:
-    @examples(250)
+    @examples(40)
     @given(data=st.data())
     def check(data: st.DataObject) -> None:
         rig = new_rig()
@@ -302,7 +302,7 @@ def test_read_state_survives_any_reply_bytes(new_rig: Callable[[], Rig]) -> None
 
 
 def test_single_reads_return_the_value_or_a_bus_error(new_rig: Callable[[], Rig]) -> None:
-    @examples(250)
+    @examples(80)
     @given(data=st.data(), dxl_id=st.sampled_from(IDS))
     def check(data: st.DataObject, dxl_id: int) -> None:
         rig = new_rig()
@@ -333,7 +333,7 @@ def test_single_reads_return_the_value_or_a_bus_error(new_rig: Callable[[], Rig]
 def test_enable_and_disable_tell_the_truth_under_any_reply_bytes(
     new_rig: Callable[[], Rig],
 ) -> None:
-    @examples(120)
+    @examples(80)
     @given(data=st.data(), enable=st.booleans(), torque_before=st.booleans())
     def check(data: st.DataObject, enable: bool, torque_before: bool) -> None:
         rig = new_rig()
@@ -359,7 +359,7 @@ def test_enable_and_disable_tell_the_truth_under_any_reply_bytes(
 
 
 def test_scan_returns_only_what_answered_or_a_bus_error(new_rig: Callable[[], Rig]) -> None:
-    @examples(25)
+    @examples(10)
     @given(data=st.data(), ids=st.sampled_from([None, (1, 2, 3, 4)]), silent=st.booleans())
     def check(data: st.DataObject, ids: tuple[int, ...] | None, silent: bool) -> None:
         rig = new_rig()

@@ -14,6 +14,7 @@ import canopen
 import pytest
 
 from sim_backend.server import EmulatedJointSpec, Emulator, EmulatorSpec
+from tests.load_conditions import timing_is_unreliable
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -47,8 +48,12 @@ def test_an_idle_canopen_client_with_the_printed_arguments_does_not_spin() -> No
         emulator.close()
 
 
+@pytest.mark.timing
 def test_the_measure_tells_a_spinning_client() -> None:
     """The same measure with timeout 0: the bound above is not one nothing could exceed."""
+    reason = timing_is_unreliable(client_spins=True)
+    if reason is not None:  # a spinning thread's share of a CPU is whatever the load leaves
+        pytest.skip(f"a spinning client's CPU share is not measurable now: {reason}")
     emulator = Emulator(EmulatorSpec(joints=(EmulatedJointSpec(dxl_id=1, encoder_node_id=5),)))
     try:
         spinning = dict(emulator.endpoints()["can"], timeout=0)

@@ -154,7 +154,7 @@ def test_slcan_adapter_survives_any_host_bytes() -> None:
     host = os.open(adapter.port_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
     try:
 
-        @examples(150)
+        @examples(80)
         @given(text=slcan_text, cuts=st.lists(st.integers(0, 200), max_size=6))
         def check(text: bytes, cuts: list[int]) -> None:
             bounds = sorted({0, len(text), *[c for c in cuts if c < len(text)]})
@@ -231,7 +231,7 @@ def sdo_upload(node: LinkEncoderNode, index: int, subindex: int, now_s: float) -
     return int.from_bytes(data[4 : 4 + size], "little")
 
 
-@examples(200)
+@examples(100)
 @given(frames=st.lists(any_frame(), max_size=40))
 def test_encoder_node_survives_any_frames(frames: list[can.Message]) -> None:
     node = LinkEncoderNode(NODE, lambda: 0.25)

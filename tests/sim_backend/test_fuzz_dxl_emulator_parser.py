@@ -201,7 +201,7 @@ def tables(chain: DynamixelChain) -> list[bytes]:
 # --- the parser ------------------------------------------------------------------------------
 
 
-@examples(400)
+@examples(60)
 @given(data=st.data(), stream=hostile_stream())
 def test_parser_never_raises_never_invents_and_stays_bounded(
     data: st.DataObject, stream: bytes
@@ -224,7 +224,7 @@ def test_parser_never_raises_never_invents_and_stays_bounded(
     assert parser.stats.packets == sum(packet.crc_ok for packet in found)
 
 
-@examples(300)
+@examples(100)
 @given(data=st.data(), stream=hostile_stream())
 def test_how_the_bytes_are_split_does_not_change_what_is_parsed(
     data: st.DataObject, stream: bytes
@@ -236,7 +236,7 @@ def test_how_the_bytes_are_split_does_not_change_what_is_parsed(
     assert pieces == whole
 
 
-@examples(300)
+@examples(100)
 @given(data=st.data(), junk=hostile_stream(), packet=valid_instruction())
 def test_a_valid_packet_after_garbage_and_an_idle_line_is_parsed_exactly(
     data: st.DataObject, junk: bytes, packet: bytes
@@ -257,7 +257,7 @@ def test_a_valid_packet_after_garbage_and_an_idle_line_is_parsed_exactly(
 # --- the chain above the parser --------------------------------------------------------------
 
 
-@examples(250)
+@examples(80)
 @given(data=st.data(), stream=hostile_stream(), led=st.integers(0, 255))
 def test_garbage_never_corrupts_a_control_table_and_is_followed_by_exact_answers(
     data: st.DataObject, stream: bytes, led: int
