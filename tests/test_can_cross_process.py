@@ -135,14 +135,17 @@ def test_dead_node_across_processes_is_invalid_and_bounded_in_time() -> None:
         )
         try:
             reader.open()
-            assert reader.read(timeout_s=0.02).all_valid
+            # The healthy node must answer within the timeout: on a loaded machine the child
+            # (no real-time scheduling) needs a longer one.
+            loaded = timing_is_unreliable() is not None
+            timeout_s, slack_s = (0.2, 1.0) if loaded else (0.01, 0.1)
+            assert reader.read(timeout_s=2 * timeout_s).all_valid
             segment.set_fault(6, "dead")
             ages = []
-            slack_s = 0.1 if timing_is_unreliable() is None else 1.0
             for _ in range(5):
                 started = time.monotonic()
-                reading = reader.read(timeout_s=0.01)
-                assert time.monotonic() - started < 0.01 + slack_s
+                reading = reader.read(timeout_s=timeout_s)
+                assert time.monotonic() - started < timeout_s + slack_s
                 assert reading.valid.tolist() == [True, False]
                 ages.append(float(reading.age_s[1]))
             assert all(b > a for a, b in zip(ages, ages[1:], strict=False))
