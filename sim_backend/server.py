@@ -159,6 +159,10 @@ class Emulator:
         self.line = DynamixelLine(self.chain, realtime=self.realtime)
         self.segment = CanSegment(nodes, bitrate=spec.can_bitrate)
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
+        # The nodes were powered before any host connected: their power-on boot-ups go out now,
+        # to the closed channel (later, one could pass for the answer to a host's first reset).
+        for frame in self.segment.poll(self._node_time()):
+            self.slcan.send_frame(frame)
         self.sync_count = 0
         self._fired: set[int] = set()
         self._started: set[int] = set()  # scenario fault events that were active at least once

@@ -180,6 +180,11 @@ def _serve_child(
         nodes = {spec.node_id: build_node(spec, clock) for spec in specs}
         segment = CanSegment(nodes.values(), bitrate=bus_bitrate)
         with SlcanPty(bus_bitrate=bus_bitrate) as adapter:
+            # The nodes were powered before anyone connected: their power-on boot-up goes out
+            # now, to a closed channel (sent later, it could pass for the answer to a host's
+            # first NMT reset while the node, in fact, is restarting).
+            for frame in segment.poll(clock()):
+                adapter.send_frame(frame)
             control.send(("ready", adapter.port_path))
             while True:
                 wait_s = _CHILD_IDLE_WAKEUP_S
