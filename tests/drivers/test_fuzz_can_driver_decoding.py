@@ -13,7 +13,7 @@ extended and error frames, strangers. Properties:
 - a clean SYNC afterwards is answered normally.
 
 Case counts: `max_examples` below, times FUZZ_SCALE (environment, default 1). The long run:
-    FUZZ_SCALE=50 .venv/bin/pytest -q tests/drivers/test_fuzz_can_driver_decoding.py
+    FUZZ_SCALE=50 .venv/bin/pytest -q --timeout=0 tests/drivers/test_fuzz_can_driver_decoding.py
 """
 
 from __future__ import annotations

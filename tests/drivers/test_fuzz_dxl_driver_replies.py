@@ -14,7 +14,7 @@ exactly the device's; a clean tick after any mangled one is complete again; `dis
 returns means torque is off in every device, `enable()` that returns means it is on.
 
 Case counts: `max_examples` below, times FUZZ_SCALE (environment, default 1). The long run:
-    FUZZ_SCALE=50 .venv/bin/pytest -q tests/drivers/test_fuzz_dxl_driver_replies.py
+    FUZZ_SCALE=50 .venv/bin/pytest -q --timeout=0 tests/drivers/test_fuzz_dxl_driver_replies.py
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ at arbitrary points with arbitrary gaps. Properties:
   the CRC-good packets the parser found.
 
 Case counts: `max_examples` below, times FUZZ_SCALE (environment, default 1). The long run:
-    FUZZ_SCALE=50 .venv/bin/pytest -q tests/sim_backend/test_fuzz_dxl_emulator_parser.py
+    FUZZ_SCALE=50 .venv/bin/pytest -q --timeout=0 tests/sim_backend/test_fuzz_dxl_emulator_parser.py
 """
 
 from __future__ import annotations
