@@ -9,13 +9,14 @@ CiA 301 behaviour implemented (sources: CiA 301 services as documented in the Be
 Inovance MD38CAN2 and Datalogic AMT58 manuals, and CANopenNode's `minimal_project.xdd`):
 - NMT (0x000 [cs, node or 0]): start 0x01 -> Operational, stop 0x02 -> Stopped, 0x80 ->
   Pre-operational, reset node 0x81 (every object back to its default) and reset
-  communication 0x82 (objects 0x1000-0x1FFF back to their defaults). After a reset, and at
-  power-on, the node initialises for `bootup_delay_s` (default `DEFAULT_BOOTUP_DELAY_S`): it
-  sends nothing and ignores every frame, then sends its boot-up frame 0x700+id [0x00] and is
-  Pre-operational. A real node takes milliseconds to restart, so its boot-up always comes
-  after the command; a master that sends the reset and then starts waiting for the boot-up
-  (canopen's `nmt.wait_for_bootup()`) relies on that. `bootup_delay_s=0` answers at once, in
-  the reply to the command itself.
+  communication 0x82 (objects 0x1000-0x1FFF back to their defaults). After a reset, and when
+  its power returns (fault "dead" cleared), the node initialises for `bootup_delay_s` (default
+  `DEFAULT_BOOTUP_DELAY_S`): it sends nothing and ignores every frame, then sends its boot-up
+  frame 0x700+id [0x00] and is Pre-operational. A node made by the emulator was powered before
+  anyone listened: its boot-up goes out on the first call. A real node takes milliseconds to
+  restart, so its boot-up always comes after the command; a master that sends the reset and
+  then starts waiting for the boot-up (canopen's `nmt.wait_for_bootup()`) relies on that.
+  `bootup_delay_s=0` answers at once, in the reply to the command itself.
 - Heartbeat 0x700+id [state] every 0x1017 ms (0 = off), states 0x04/0x05/0x7F, and at once on
   an NMT state change (as CANopenNode's CO_NMT_process does; the period restarts from there).
   A heartbeat that falls due while the caller is not polling is skipped, not sent in a burst.
@@ -29,8 +30,8 @@ Inovance MD38CAN2 and Datalogic AMT58 manuals, and CANopenNode's `minimal_projec
 
 Faults (`SensorFault`, mutable, looked at on every call):
 - "dead": the node lost power: it sends nothing at all. Leaving "dead" is a power-on: all
-  objects back to their defaults, boot-up frame, Pre-operational (the master must configure and
-  start it again, as with a real node whose supply came back).
+  objects back to their defaults, boot-up frame after the boot-up delay, Pre-operational (the
+  master must configure and start it again, as with a real node whose supply came back).
 - "stale": a hung counter: the process value stays at the last value the node sampled before
   the fault began; NMT, SDO and heartbeat keep working.
 - "noisy": zero-mean Gaussian noise of `noise_counts_rms` (in the device's raw units) is added

@@ -9,7 +9,8 @@
   objects (device type, identity, resolution) keep their values.
 
 Case counts: `max_examples` below, times FUZZ_SCALE (environment, default 1). The long run:
-    FUZZ_SCALE=50 .venv/bin/pytest -q --timeout=0 tests/sim_backend/test_fuzz_can_emulator_decoding.py
+    FUZZ_SCALE=50 .venv/bin/pytest -q --timeout=0 \
+        tests/sim_backend/test_fuzz_can_emulator_decoding.py
 """
 
 from __future__ import annotations
