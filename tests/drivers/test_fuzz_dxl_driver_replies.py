@@ -140,12 +140,28 @@ junk_bytes = st.lists(
 ).map(bytes)
 
 
+# Parameter lengths a real answer to the driver can have: WRITE 0, 1-byte READ 1, PING 3,
+# 4-byte READ 4, the state block 15. A CRC-good status with one of our IDs, no error number and
+# one of these lengths IS, on the wire, that device's answer: nothing could tell a forged one
+# from it, so the fuzz never forges one.
+ANSWER_LENGTHS = (0, 1, 3, 4, 15)
+
+
 @st.composite
 def stranger_status(draw: st.DrawFn) -> bytes:
-    """A CRC-good status packet that is not the expected one: another ID, an error, a length."""
+    """A CRC-good status packet that is not the expected one: another ID, an error number, or
+    a length no answer has (see ANSWER_LENGTHS)."""
     dxl_id = draw(st.sampled_from([*IDS, 9, 200]))
-    error = draw(st.sampled_from([0, 0x80, 1, 4, 7, 0x86]))
-    return build_status_packet(dxl_id, error, draw(st.binary(max_size=20)))
+    if dxl_id not in IDS:
+        error = draw(st.sampled_from([0, 0x80, 1, 4, 7, 0x86]))
+        return build_status_packet(dxl_id, error, draw(st.binary(max_size=20)))
+    if draw(st.booleans()):  # an error reply: the driver reports it
+        error = draw(st.sampled_from([1, 4, 7, 0x86]))
+        return build_status_packet(dxl_id, error, draw(st.binary(max_size=20)))
+    length = draw(st.integers(0, 20).filter(lambda n: n not in ANSWER_LENGTHS))
+    return build_status_packet(
+        dxl_id, draw(st.sampled_from([0, 0x80])), draw(st.binary(min_size=length, max_size=length))
+    )
 
 
 @st.composite
