@@ -416,3 +416,17 @@ def test_a_short_reply_is_not_read_as_data(new_rig: Callable[[], Rig]) -> None:
     rig.wire.mangle = None
     rig.wire.quiet()
     assert io.ping(1) == (54024, COMM_SUCCESS)
+
+
+def test_a_sync_read_reply_of_the_wrong_length_is_not_decoded(
+    new_rig: Callable[[], Rig],
+) -> None:
+    """A CRC-good status from ID 1 with 5 bytes, ahead of the real replies: skipped (the state
+    block has 15), and ID 1's real reply still counts."""
+    rig = new_rig()
+    reference = rig.chain.read_state()
+    stranger = build_status_packet(1, 0, b"\x01\x02\x03\x04\x05")
+    rig.wire.mangle = lambda replies: [(0.0, stranger + replies)]
+    state = rig.chain.read_state()
+    assert state.valid.all(), state.errors
+    same_where_valid(state, reference)
