@@ -90,6 +90,7 @@ def link_encoders(spec: EmulatorSpec, link_angle: Callable[[int], float]) -> lis
                 heartbeat_ms=spec.heartbeat_ms,
                 seed=spec.seed * 7919 + index,
                 noise_counts_rms=spec.sensor_noise.link_encoder_counts_rms,
+                bootup_delay_s=spec.can_bootup_delay_s,
             )
         )
     return nodes
@@ -155,6 +156,7 @@ class EmulatedTestbed:
                 heartbeat_ms=spec.heartbeat_ms,
                 seed=spec.seed * 7919 + 999,
                 noise_n_rms=spec.sensor_noise.force_sensor_n_rms,
+                bootup_delay_s=spec.can_bootup_delay_s,
             )
         return hardware
 

@@ -10,6 +10,7 @@ from typing import Any
 
 from sim_backend.canbus.encoder_node import RLC2IC_NOISE_COUNTS_RMS
 from sim_backend.canbus.force_sensor_node import FORCE_SENSOR_NOISE_N_RMS
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
 from sim_backend.dynamixel import BAUD_RATE_BPS
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import Scenario
@@ -91,6 +92,7 @@ class EmulatorSpec:
     robot: str = "testbed"  # or "dyros-jet" (with `humanoid`)
     humanoid: HumanoidSpec | None = None
     usb_latency_timer_s: float = 0.0  # the USB-serial adapter's, realtime only (line.py)
+    can_bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S  # a CAN node's restart after NMT reset
 
     def __post_init__(self) -> None:
         if not self.joints:

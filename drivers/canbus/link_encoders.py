@@ -26,11 +26,14 @@ queue):
      Operational (0x05).
 Every failure names the node, the bus, and what was expected.
 
-Timing: `collect()` returns within `timeout_s` plus the interface's receive granularity
-(python-can's slcan polls its serial port with a 1 ms timeout by default, so up to ~1.5 ms
-late was measured; `virtual` is prompt). In-process lock-step: send_sync(), then pump the
-emulated nodes, then collect(). An emulator that only advances its clock on SYNC still lets
-open() finish: the nodes answer NMT and SDO at once and announce a state change by heartbeat.
+Waiting: where the bus offers a file descriptor (python-can's `fileno()`: slcan's serial port,
+socketcan's socket), the reader sleeps in `select()` until bytes arrive and then takes the
+frames with `recv(timeout=0)`, as python-can's own asyncio Notifier does. So it neither spins
+nor depends on the slcan `timeout` keyword, which is the serial port's read timeout: python-can's
+slcan `recv()` blocks that long in every empty read (1 ms by default: a whole tick's worth of
+empty polls in lock-step) and spins a core when it is 0. Buses without a descriptor (`virtual`)
+are read with `recv(timeout)`. `collect()` returns within `timeout_s` plus the scheduler's
+latency. In-process lock-step: send_sync(), then pump the emulated nodes, then collect().
 
 Units: counts -> radians in `units.link_angle_rad_from_counts` and PV -> N in
 `units.force_n_from_counts`, nowhere else. The TPDO bytes are decoded as a little-endian INTEGER32
@@ -42,6 +45,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import select
 import struct
 import threading
 import time
@@ -98,6 +102,15 @@ _TPDO_COB_ID_BASES = (0x180, 0x280, 0x380, 0x480)
 _INT32 = struct.Struct("<i")
 _UNKNOWN_STATE = 0xFF
 _NOTIFIER_POLL_S = 0.005
+# CiA 301 frame lengths canopen's handlers rely on, by function code (COB-ID & 0x780), for
+# the COB-IDs a RemoteNode subscribes to: NMT 0x000, EMCY 0x080+id, SDO 0x580+id, 0x700+id.
+_FUNCTION_CODE_MASK = 0x780
+_MIN_FRAME_BYTES = {
+    0x000: 2,  # NMT command: command specifier, node ID
+    0x080: 8,  # EMCY: error code, error register, 5 bytes manufacturer data
+    0x580: 8,  # SDO response
+    0x700: 1,  # heartbeat / boot-up: the state byte
+}
 _MAX_FRAMES_PER_DRAIN = 1024
 
 
@@ -167,6 +180,7 @@ class LinkEncoderReader:
                 f"got {heartbeat_timeout_factor}"
             )
         self._bus = bus
+        self._fd = _selectable_fileno(bus)
         self._clock = clock
         self.bus_description = bus_description or f"{type(bus).__name__} ({bus.channel_info})"
         self._sdo_timeout_s = sdo_timeout_s
@@ -308,7 +322,6 @@ class LinkEncoderReader:
             raise CanDeviceError(f"collect() on {self.bus_description} without send_sync() first")
         n_devices = len(self._devices)
         deadline = time.monotonic() + timeout_s
-        recv = self._bus.recv
         overdue_frames = 0
         while self._n_answered < n_devices:
             remaining = deadline - time.monotonic()
@@ -318,7 +331,7 @@ class LinkEncoderReader:
                 overdue_frames += 1
                 if overdue_frames > _MAX_FRAMES_PER_DRAIN:
                     break
-            msg = recv(timeout=max(remaining, 0.0))
+            msg = self._receive(deadline)
             if msg is None:
                 break
             self._dispatch(msg)
@@ -331,11 +344,29 @@ class LinkEncoderReader:
         return self.collect(timeout_s)
 
     # --- receive path (no thread) ----------------------------------------------------------
+    def _receive(self, deadline: float) -> can.Message | None:
+        """The next frame, waiting until `deadline` (time.monotonic) at most; None if none came.
+
+        With a file descriptor: sleep in select() until bytes arrive, then recv(timeout=0),
+        which then returns without waiting; bytes that were no frame (slcan's acknowledgement
+        of our own transmission, half a line) send it back to sleep.
+        """
+        fd = self._fd
+        if fd is None:
+            return self._bus.recv(timeout=max(deadline - time.monotonic(), 0.0))
+        for _ in range(_MAX_FRAMES_PER_DRAIN):
+            wait_s = max(deadline - time.monotonic(), 0.0)
+            if not select.select((fd,), (), (), wait_s)[0]:
+                return None
+            msg = self._bus.recv(timeout=0.0)
+            if msg is not None:
+                return msg
+        return None  # a babbling port: give the tick back
+
     def _drain(self) -> None:
         """Handle the frames already received (bounded, so a flooded bus cannot hang a tick)."""
-        recv = self._bus.recv
         for _ in range(_MAX_FRAMES_PER_DRAIN):
-            msg = recv(timeout=0.0)
+            msg = self._receive(deadline=0.0)  # only what is there now
             if msg is None:
                 return
             self._dispatch(msg)
@@ -345,7 +376,7 @@ class LinkEncoderReader:
             return
         index = self._tpdo_device.get(msg.arbitration_id)
         if index is None:  # NMT heartbeat, EMCY, SDO: canopen's handlers (callbacks below)
-            self._network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+            self._notify_canopen(msg)
             return
         device = self._devices[index]
         if device.is_force_torque:
@@ -381,6 +412,28 @@ class LinkEncoderReader:
         if self._ft_parts[index] == 0b11 and not self._answered[index]:
             self._answered[index] = True
             self._n_answered += 1
+
+    def _notify_canopen(self, msg: can.Message) -> None:
+        """Hand a frame to canopen's handlers, unless it is too short for them.
+
+        canopen unpacks these frames with `struct` and raises on a short one (an empty
+        heartbeat, a 2-byte EMCY): on the tick path that would end the run, so a frame shorter
+        than CiA 301 defines is logged as an event and dropped here.
+        """
+        cob_id = msg.arbitration_id
+        if cob_id not in self._network.subscribers:
+            return  # nobody listens (another node's frames, SYNC, PDOs we do not use)
+        needed = _MIN_FRAME_BYTES.get(cob_id & _FUNCTION_CODE_MASK)
+        if needed is not None and len(msg.data) < needed:
+            self._events.append(
+                f"malformed frame 0x{cob_id:03X} with {len(msg.data)} byte(s) ignored "
+                f"(CiA 301 defines {needed})"
+            )
+            return
+        try:
+            self._network.notify(cob_id, msg.data, msg.timestamp)
+        except (struct.error, ValueError, KeyError, IndexError) as error:
+            self._events.append(f"frame 0x{cob_id:03X} [{bytes(msg.data).hex()}] ignored: {error}")
 
     def _on_heartbeat(self, index: int, state: int) -> None:
         """canopen heartbeat callback (Notifier thread during open, else collect's thread)."""
@@ -773,6 +826,16 @@ class LinkEncoderReader:
         raise ValueError(
             f"node {node_id} is not configured on {self.bus_description} (known: {known})"
         )
+
+
+def _selectable_fileno(bus: can.BusABC) -> int | None:
+    """The bus's file descriptor if it has one to select() on (python-can's convention, as its
+    Notifier uses it), else None."""
+    try:
+        fd = bus.fileno()
+    except (NotImplementedError, can.CanError, OSError, ValueError):
+        return None
+    return fd if isinstance(fd, int) and fd >= 0 else None
 
 
 def _state_name(state: int) -> str:

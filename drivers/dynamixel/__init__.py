@@ -2,7 +2,7 @@
 
 - `DynamixelChain`: a chain of actuators on one port (state block by one sync read, goals by one
   sync write, enable / disable / reboot, hardware-error reporting), SI units at its interface.
-- `scan`: which devices answer on a port.
+- `scan` / `scan_bauds`: which devices answer on a port (progress callback, time budget).
 - `bench_bus`: the chain's tick against a bare SDK loop.
 """
 
@@ -21,10 +21,22 @@ from drivers.dynamixel.control_table import (
     model_number,
     model_spec,
 )
-from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, EepromChangeRefused
+from drivers.dynamixel.errors import (
+    DeviceShutdownError,
+    DynamixelReplyError,
+    EepromChangeRefused,
+    PortGoneError,
+)
 from drivers.dynamixel.hardware_error import HardwareError, actuator_fault
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
-from drivers.dynamixel.scan import FoundDevice, scan
+from drivers.dynamixel.scan import (
+    FoundDevice,
+    ScanProgress,
+    ScanReport,
+    ScanStep,
+    scan,
+    scan_bauds,
+)
 from drivers.dynamixel.units import H54_200_S500_R_UNITS, DeviceUnits
 
 __all__ = [
@@ -47,10 +59,15 @@ __all__ = [
     "HardwareErrorStatus",
     "LowLatencyPortHandler",
     "ModelSpec",
+    "PortGoneError",
+    "ScanProgress",
+    "ScanReport",
+    "ScanStep",
     "actuator_fault",
     "bench_bus",
     "model_number",
     "model_spec",
     "open_port",
     "scan",
+    "scan_bauds",
 ]

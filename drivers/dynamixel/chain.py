@@ -40,7 +40,12 @@ from dynamixel_sdk import (
 from drivers.dynamixel import configure
 from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
 from drivers.dynamixel.device_io import ERRBIT_ALERT, ERROR_NUMBER_MASK, DeviceIO
-from drivers.dynamixel.errors import DeviceShutdownError, DynamixelReplyError, EepromChangeRefused
+from drivers.dynamixel.errors import (
+    DeviceShutdownError,
+    DynamixelReplyError,
+    EepromChangeRefused,
+    PortGoneError,
+)
 from drivers.dynamixel.hardware_error import HardwareError
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.state import DeviceInfo, DynamixelState, HardwareErrorStatus
@@ -141,6 +146,12 @@ class DynamixelChain:
     def packet_handler(self) -> PacketHandler:
         return self._packet
 
+    @property
+    def port_failure(self) -> str | None:
+        """The OS error with which the port failed (device unplugged, emulator gone), or None
+        while it works. After a failure every call raises `PortGoneError` and sends nothing."""
+        return self._port.failure if self._port is not None else None
+
     # ------------------------------------------------------------------------------ lifecycle
 
     def open(self, *, allow_torque_off: bool = False, read_only: bool = False) -> None:
@@ -206,7 +217,8 @@ class DynamixelChain:
         """One SYNC_READ of the state block of every device (see the module docstring).
 
         Never raises for a device that does not answer: its entries are invalid (NaN) and
-        `errors` says why. Raises `BusError` only if the chain is not open.
+        `errors` says why. Raises `BusError` if the chain is not open, `PortGoneError` (a
+        BusError) if the port itself failed.
         """
         io = self._require_io()
         sync_read = self._sync_read
@@ -374,19 +386,63 @@ class DynamixelChain:
 
         Every device is tried even if one fails; afterwards one `BusError` lists the failures.
         A reply with only the Alert bit set counts as success (a device in shutdown).
+        If the port itself has failed (or fails now), `PortGoneError` says so, names the devices
+        whose torque could not be turned off and whether the command reached any of them:
+        nothing is claimed that did not happen on the wire.
         """
         io = self._require_writable("torque off")
+        targets = self._select(ids)
+        if io.port.failure is not None:
+            raise self._torque_off_lost(io, io.port.gone_error("write"), [], targets)
         failures = []
+        confirmed: list[int] = []
         torque_item = self.spec.item("Torque Enable")
-        for dxl_id in self._select(ids):
+        for position, dxl_id in enumerate(targets):
             try:
                 io.write_item(dxl_id, torque_item, 0)
                 if io.read_item(dxl_id, torque_item) != 0:
                     failures.append(f"{io.label(dxl_id)}: Torque Enable still reads 1")
+                else:
+                    confirmed.append(dxl_id)
+            except PortGoneError as exc:
+                raise self._torque_off_lost(io, exc, confirmed, targets[position:]) from exc
             except BusError as exc:
                 failures.append(str(exc))
         if failures:
             raise BusError("disable() could not turn torque off everywhere: " + "; ".join(failures))
+
+    def _torque_off_lost(
+        self,
+        io: DeviceIO,
+        error: PortGoneError,
+        confirmed: list[int],
+        lost: tuple[int, ...],
+    ) -> PortGoneError:
+        """The error of a disable() that the port's failure cut short (see disable)."""
+        first, rest = lost[0], lost[1:]
+        if error.packet_was_sent:
+            in_flight = (
+                f"Torque Enable = 0 was sent to {io.label(first)} but the port failed before "
+                "its reply: its torque state is unknown"
+            )
+        else:
+            in_flight = f"no Torque Enable = 0 reached {io.label(first)}"
+        parts = [
+            f"disable(): the Dynamixel port {error.port} is gone ({error.reason}); torque "
+            f"could not be turned off: {in_flight}"
+        ]
+        if rest:
+            parts.append("nothing was sent to " + ", ".join(io.label(dxl_id) for dxl_id in rest))
+        if confirmed:
+            parts.append(
+                "torque off was confirmed on " + ", ".join(io.label(dxl_id) for dxl_id in confirmed)
+            )
+        parts.append(
+            "devices that had torque on keep it until their power is cut or the port is back"
+        )
+        return PortGoneError(
+            "; ".join(parts) + ".", port=error.port, reason=error.reason, operation=error.operation
+        )
 
     def reboot(self, ids: Iterable[int] | None = None) -> dict[int, HardwareErrorStatus]:
         """REBOOT the given devices (all if None); returns their hardware error status after.
@@ -448,6 +504,10 @@ class DynamixelChain:
     def _require_io(self) -> DeviceIO:
         if self._io is None:
             raise BusError(f"Dynamixel chain on {self.config.port} is not open; call open() first")
+        # The chain is used from one thread, so a transaction in progress now can only be one
+        # that an exception (Ctrl-C in the SDK's busy-wait) interrupted: the SDK would refuse
+        # every later call with "Port is in use!". Release its flag.
+        self._io.port.is_using = False
         return self._io
 
     def _select(self, ids: Iterable[int] | None) -> tuple[int, ...]:

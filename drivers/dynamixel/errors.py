@@ -34,3 +34,24 @@ class DeviceShutdownError(BusError):
 class EepromChangeRefused(BusError):
     """open() needs to change EEPROM items of a device whose torque is on, and was not allowed to
     turn torque off (the link would fall)."""
+
+
+class PortGoneError(BusError):
+    """The serial port itself failed (the adapter was unplugged or lost power, the emulator
+    stopped): nothing can be sent or received on it any more.
+
+    port: the port's path. reason: the operating system's error. operation: the port operation
+    that failed ("clear", "write", "read", "bytes available"); a "clear" or "write" failure
+    means the packet in hand did not reach the wire.
+    """
+
+    def __init__(self, message: str, *, port: str, reason: str, operation: str) -> None:
+        super().__init__(message)
+        self.port = port
+        self.reason = reason
+        self.operation = operation
+
+    @property
+    def packet_was_sent(self) -> bool:
+        """Whether the packet being exchanged when the port failed had been written."""
+        return self.operation not in ("clear", "write")

@@ -20,13 +20,23 @@ a sync read with one silent ID costs 4.25 ms (3 IDs) / 4.84 ms (12 IDs), its tim
 from __future__ import annotations
 
 import os
+import termios
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import serial
 from dynamixel_sdk import PortHandler
 
+from drivers.dynamixel.errors import PortGoneError
 from drivers.joint_bus import BusError
+
+_T = TypeVar("_T")
+
+# What a vanished port raises in the SDK's calls: pyserial's SerialException (an OSError) from
+# read/write, OSError from ioctl, and termios.error (not an OSError) from tcflush.
+_PORT_FAILURES = (OSError, serial.SerialException, termios.error)
 
 USB_SERIAL_SYSFS = Path("/sys/bus/usb-serial/devices")
 
@@ -41,6 +51,10 @@ class LowLatencyPortHandler(PortHandler):
     cut a wait short or stretch it. The broadcast ping keeps the SDK's own fixed timeout
     (`setPacketTimeoutMillis`, about 0.8 s), which suits a one-off scan.
 
+    A port that fails (adapter unplugged, emulator gone) raises `PortGoneError` from then on,
+    on every call, without touching the device again; the SDK's `is_using` flag is released, so
+    a later call cannot be mistaken for a busy port ("Port is in use!").
+
     Not thread-safe (neither is the SDK): use one port from one thread.
     """
 
@@ -54,6 +68,42 @@ class LowLatencyPortHandler(PortHandler):
         super().__init__(port_name)
         self.latency_timer_ms = float(latency_timer_ms)
         self.timeout_margin_ms = float(timeout_margin_ms)
+        self.failure: str | None = None  # the OS error that made the port fail, once it has
+
+    # The SDK's port I/O, guarded: a failure is recorded once and reported as PortGoneError.
+    def clearPort(self) -> None:
+        self._guarded("clear", super().clearPort)
+
+    def writePort(self, packet: list[int] | bytes) -> int:
+        return self._guarded("write", super().writePort, packet)
+
+    def readPort(self, length: int) -> bytes:
+        return self._guarded("read", super().readPort, length)
+
+    def getBytesAvailable(self) -> int:
+        return self._guarded("bytes available", super().getBytesAvailable)
+
+    def gone_error(self, operation: str) -> PortGoneError:
+        """The error for an `operation` on this failed port (see `PortGoneError`)."""
+        return PortGoneError(
+            f"the serial port {self.port_name!r} is gone ({self.failure}): the adapter was "
+            "unplugged or lost power, or the emulator stopped",
+            port=self.port_name,
+            reason=self.failure or "",
+            operation=operation,
+        )
+
+    def _guarded(self, operation: str, call: Callable[..., _T], *args: object) -> _T:
+        if self.failure is not None:
+            self.is_using = False
+            # Nothing is attempted on a failed port: whatever was to be sent, was not.
+            raise self.gone_error("write" if operation == "clear" else operation)
+        try:
+            return call(*args)
+        except _PORT_FAILURES as exc:
+            self.is_using = False  # the SDK set it for the transaction that now cannot end
+            self.failure = _describe(exc)
+            raise self.gone_error(operation) from exc
 
     def setPacketTimeout(self, packet_length: int) -> None:  # overrides the SDK method
         self.packet_start_time = self.getCurrentTime()
@@ -74,6 +124,12 @@ class LowLatencyPortHandler(PortHandler):
             + 2.0 * self.latency_timer_ms
             + self.timeout_margin_ms
         )
+
+
+def _describe(exc: BaseException) -> str:
+    if isinstance(exc, termios.error) and len(exc.args) == 2:  # (errno, text), no class name
+        return f"[Errno {exc.args[0]}] {exc.args[1]}"
+    return f"{type(exc).__name__}: {exc}"
 
 
 def sdk_accepts_baudrate(baudrate: int) -> bool:

@@ -15,7 +15,7 @@ SCAN_BAUDRATES = (3_000_000, 4_000_000, 1_000_000, 2_000_000, 57_600, 115_200, 9
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
-    from drivers.dynamixel import scan
+    from drivers.dynamixel import ScanProgress, scan
     from drivers.joint_bus import BusError
 
     bauds = (args.baudrate,) if args.baudrate else SCAN_BAUDRATES
@@ -26,11 +26,12 @@ def cmd_scan(args: argparse.Namespace) -> int:
         for number, baud in enumerate(bauds):
             bar.update_to(number, f"{baud} bps")
 
-            def pinged(done: int, of: int, number: int = number) -> None:
-                bar.update_to(number + done / of)
+            def pinged(step: ScanProgress, number: int = number) -> None:
+                if step.pings_planned:
+                    bar.update_to(number + step.pings_done / step.pings_planned)
 
             try:
-                devices = scan(args.port, baud, on_ping=pinged)
+                devices = scan(args.port, baud, progress=pinged)
             except BusError as exc:
                 print(f"hil scan: {exc}", file=sys.stderr)
                 return ExitCode.FAILED

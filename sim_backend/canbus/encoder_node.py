@@ -43,7 +43,7 @@ from typing import Any
 
 from sim_backend.canbus.cia301 import SdoAbortCode
 from sim_backend.canbus.object_store import eds_path
-from sim_backend.canbus.slave import CanopenSlave, SensorFault
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S, CanopenSlave, SensorFault
 
 EncoderFault = SensorFault  # the fault type of an encoder node (noise in counts rms)
 
@@ -77,6 +77,7 @@ class LinkEncoderNode(CanopenSlave):
         seed: int = 0,
         tpdo_transmission_type: int = 1,
         noise_counts_rms: float = 0.0,
+        bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S,
     ) -> None:
         if not callable(angle_source):
             raise TypeError("angle_source must be a callable returning the link angle in rad")
@@ -95,6 +96,7 @@ class LinkEncoderNode(CanopenSlave):
             heartbeat_ms=heartbeat_ms,
             seed=seed,
             tpdo_transmission_type=tpdo_transmission_type,
+            bootup_delay_s=bootup_delay_s,
             serial_number=0x4060_0000 + node_id,
             process_noise_rms=noise_counts_rms,
         )

@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from sim_backend.canbus.object_store import eds_path
-from sim_backend.canbus.slave import CanopenSlave
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S, CanopenSlave
 
 FORCE_SENSOR_EDS_FILE = "emulated_cia404_force_sensor.eds"
 FORCE_SENSOR_NOISE_N_RMS = 0.05  # nominal (an assumption; see the module docstring)
@@ -57,6 +57,7 @@ class ForceSensorNode(CanopenSlave):
         seed: int = 0,
         tpdo_transmission_type: int = 1,
         noise_n_rms: float = 0.0,
+        bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S,
     ) -> None:
         if not callable(force_source):
             raise TypeError("force_source must be a callable returning the force in N")
@@ -69,6 +70,7 @@ class ForceSensorNode(CanopenSlave):
             heartbeat_ms=heartbeat_ms,
             seed=seed,
             tpdo_transmission_type=tpdo_transmission_type,
+            bootup_delay_s=bootup_delay_s,
             serial_number=0x4040_0000 + node_id,
         )
         unit = int(self._store.stored_value(_PHYSICAL_UNIT, 1))

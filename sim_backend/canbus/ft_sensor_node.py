@@ -47,7 +47,7 @@ from sim_backend.canbus.cia301 import (
     SdoAbortCode,
 )
 from sim_backend.canbus.object_store import eds_path
-from sim_backend.canbus.slave import CanopenSlave
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S, CanopenSlave
 
 FT_SENSOR_EDS_FILE = "emulated_cia404_ft_sensor.eds"
 
@@ -77,6 +77,7 @@ class ForceTorqueSensorNode(CanopenSlave):
         heartbeat_ms: int = 100,
         seed: int = 0,
         tpdo_transmission_type: int = 1,
+        bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S,
     ) -> None:
         if not callable(wrench_source):
             raise TypeError("wrench_source must be a callable returning (force_n, torque_nm)")
@@ -95,6 +96,7 @@ class ForceTorqueSensorNode(CanopenSlave):
             seed=seed,
             tpdo_transmission_type=tpdo_transmission_type,
             serial_number=0x4046_0000 + node_id,
+            bootup_delay_s=bootup_delay_s,
         )
         for channel in range(1, _N_CHANNELS + 1):
             unit = int(self._store.stored_value(_PHYSICAL_UNIT, channel))

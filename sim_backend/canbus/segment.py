@@ -32,6 +32,8 @@ class CanNode(Protocol):
 
     def poll(self, now_s: float) -> list[can.Message]: ...
 
+    def next_due_s(self) -> float | None: ...
+
 
 class CanSegment:
     """One CAN bus segment: its nodes and its bitrate (bit/s, for adapters to check)."""
@@ -49,6 +51,12 @@ class CanSegment:
     def deliver(self, msg: can.Message, now_s: float) -> list[can.Message]:
         """Frames the nodes put on the bus in reaction to `msg` from outside the segment."""
         return self._propagate([(msg, None)], now_s, report_initial=False)
+
+    def next_due_s(self) -> float | None:
+        """When the next node sends on its own (boot-up, heartbeat, event timer), or None: an
+        event loop waits until then at most, so that these frames go out on time."""
+        due = [t for t in (node.next_due_s() for node in self.nodes) if t is not None]
+        return min(due) if due else None
 
     def poll(self, now_s: float) -> list[can.Message]:
         """Frames the nodes send on their own by `now_s`, and any reactions to them."""

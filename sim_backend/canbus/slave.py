@@ -9,8 +9,14 @@ CiA 301 behaviour implemented (sources: CiA 301 services as documented in the Be
 Inovance MD38CAN2 and Datalogic AMT58 manuals, and CANopenNode's `minimal_project.xdd`):
 - NMT (0x000 [cs, node or 0]): start 0x01 -> Operational, stop 0x02 -> Stopped, 0x80 ->
   Pre-operational, reset node 0x81 (every object back to its default) and reset
-  communication 0x82 (objects 0x1000-0x1FFF back to their defaults), each followed by the
-  boot-up frame 0x700+id [0x00] and Pre-operational. The boot-up frame is also sent at power-on.
+  communication 0x82 (objects 0x1000-0x1FFF back to their defaults). After a reset, and when
+  its power returns (fault "dead" cleared), the node initialises for `bootup_delay_s` (default
+  `DEFAULT_BOOTUP_DELAY_S`): it sends nothing and ignores every frame, then sends its boot-up
+  frame 0x700+id [0x00] and is Pre-operational. A node made by the emulator was powered before
+  anyone listened: its boot-up goes out on the first call. A real node takes milliseconds to
+  restart, so its boot-up always comes after the command; a master that sends the reset and
+  then starts waiting for the boot-up (canopen's `nmt.wait_for_bootup()`) relies on that.
+  `bootup_delay_s=0` answers at once, in the reply to the command itself.
 - Heartbeat 0x700+id [state] every 0x1017 ms (0 = off), states 0x04/0x05/0x7F, and at once on
   an NMT state change (as CANopenNode's CO_NMT_process does; the period restarts from there).
   A heartbeat that falls due while the caller is not polling is skipped, not sent in a burst.
@@ -24,8 +30,8 @@ Inovance MD38CAN2 and Datalogic AMT58 manuals, and CANopenNode's `minimal_projec
 
 Faults (`SensorFault`, mutable, looked at on every call):
 - "dead": the node lost power: it sends nothing at all. Leaving "dead" is a power-on: all
-  objects back to their defaults, boot-up frame, Pre-operational (the master must configure and
-  start it again, as with a real node whose supply came back).
+  objects back to their defaults, boot-up frame after the boot-up delay, Pre-operational (the
+  master must configure and start it again, as with a real node whose supply came back).
 - "stale": a hung counter: the process value stays at the last value the node sampled before
   the fault began; NMT, SDO and heartbeat keep working.
 - "noisy": zero-mean Gaussian noise of `noise_counts_rms` (in the device's raw units) is added
@@ -72,6 +78,16 @@ from sim_backend.canbus.sdo_server import SdoServer
 
 FAULT_MODES = ("ok", "dead", "stale", "noisy")
 
+# How long an emulated node initialises after an NMT reset (or when its power returns) before
+# it sends its boot-up frame. CiA 301 sets no figure; a device restarts its communication stack
+# in milliseconds (a full application reset may take longer). What matters for a master is that
+# the boot-up comes after the command, not with it. Measured with canopen's wait_for_bootup()
+# right after the reset, over the emulated SLCAN adapter on this 2-core machine with two
+# busy-loop processes as load: 7 of 200 waits missed the boot-up with no delay, 0 of 200 with
+# 2, 5 and 10 ms; with a client that spins (python-can slcan timeout 0) 1 of 200 missed it at
+# 5 ms. 10 ms leaves a descheduled master room to start waiting.
+DEFAULT_BOOTUP_DELAY_S = 0.010
+
 _TPDO_COMMUNICATION = 0x1800
 _TPDO_MAPPING = 0x1A00
 _HEARTBEAT_TIME = 0x1017
@@ -107,6 +123,20 @@ class SensorFault:
             )
 
 
+@dataclass
+class SensorFaultCounts:
+    """How often the node's fault actually acted (history, never reset by the node).
+
+    frames_ignored_while_dead: frames on the bus the node did not hear because it had no power.
+    stale_samples: process values served frozen (SYNC answers and SDO reads) while "stale".
+    noisy_samples: process values that got noise added while "noisy".
+    """
+
+    frames_ignored_while_dead: int = 0
+    stale_samples: int = 0
+    noisy_samples: int = 0
+
+
 def wrap_int32(value: int) -> int:
     """Two's-complement wrap of a counter to the INTEGER32 range, like a 32-bit register."""
     return ((value + 0x8000_0000) & 0xFFFF_FFFF) - 0x8000_0000
@@ -135,7 +165,10 @@ class CanopenSlave(abc.ABC):
         tpdo_transmission_type: int,
         serial_number: int,
         process_noise_rms: float = 0.0,
+        bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S,
     ) -> None:
+        if not (math.isfinite(bootup_delay_s) and bootup_delay_s >= 0.0):
+            raise ValueError(f"bootup_delay_s must be a finite time >= 0 s, got {bootup_delay_s!r}")
         if not 1 <= node_id <= 127:
             raise ValueError(f"CANopen node ID must be 1..127, got {node_id}")
         if not 0 <= heartbeat_ms <= 0xFFFF:
@@ -151,6 +184,7 @@ class CanopenSlave(abc.ABC):
         self.fault = SensorFault()
         self._process_noise_rms = 0.0
         self._set_process_noise(process_noise_rms)
+        self.fault_counts = SensorFaultCounts()
         self._store = ObjectStore(eds_file, node_id)
         self._store.set_default(_HEARTBEAT_TIME, 0, heartbeat_ms)
         self._store.set_default(_TPDO_COMMUNICATION, 2, tpdo_transmission_type)
@@ -168,8 +202,9 @@ class CanopenSlave(abc.ABC):
         self._sdo_response_cob_id = SDO_RESPONSE_COB_ID_BASE + node_id
 
         self._now_us = 0
+        self._bootup_delay_us = round(bootup_delay_s * 1_000_000)
         self._powered = False
-        self._bootup_pending = False
+        self._boot_due_us: int | None = None  # initialising: the boot-up frame is due then
         self._state = NmtState.INITIALISING
         self._fault_mode_seen = "ok"
         self._last_sample_raw: int | None = None
@@ -182,7 +217,8 @@ class CanopenSlave(abc.ABC):
         self._tpdo_cob_id = 0
         self._tpdo_enabled = False
         self._transmission_type = 1
-        self._power_on()
+        # Powered since before the emulator started: the boot-up goes out on the first call.
+        self._power_on(delay_us=0)
 
     # --- public handler API ----------------------------------------------------------------
     @property
@@ -190,10 +226,32 @@ class CanopenSlave(abc.ABC):
         """The node's NMT state (INITIALISING while it has no power)."""
         return self._state
 
+    @property
+    def booting(self) -> bool:
+        """True while the node initialises after a reset or power-on (it is silent)."""
+        return self._powered and self._boot_due_us is not None
+
+    def next_due_s(self) -> float | None:
+        """When this node next sends on its own (boot-up, heartbeat, event timer), or None.
+
+        An event loop can sleep until then instead of polling (the node's clock, seconds).
+        """
+        if not self._powered:
+            return None
+        if self._boot_due_us is not None:
+            return self._boot_due_us * 1e-6
+        due = [t for t in (self._next_heartbeat_us, self._event_due_us()) if t is not None]
+        return min(due) * 1e-6 if due else None
+
     def handle(self, msg: can.Message, now_s: float) -> list[can.Message]:
         """Frames this node sends in answer to `msg` (seen on the bus at `now_s`)."""
         out = self._prologue(now_s)
-        if not self._powered or msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+        if not self._powered:
+            self.fault_counts.frames_ignored_while_dead += 1
+            return out
+        if self._boot_due_us is not None:
+            return out  # still initialising: deaf
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             return out
         cob_id = msg.arbitration_id
         if cob_id == SYNC_COB_ID:
@@ -211,7 +269,7 @@ class CanopenSlave(abc.ABC):
     def poll(self, now_s: float) -> list[can.Message]:
         """Frames this node sends on its own by `now_s`: boot-up, heartbeat, event-timer TPDO."""
         out = self._prologue(now_s)
-        if not self._powered:
+        if not self._powered or self._boot_due_us is not None:
             return out
         now_us = self._now_us
         if self._next_heartbeat_us is not None and now_us >= self._next_heartbeat_us:
@@ -259,6 +317,7 @@ class CanopenSlave(abc.ABC):
     def _sample_raw(self) -> int:
         """The process value now, in raw units, with the fault applied (the read hook)."""
         if self._frozen_raw is not None:
+            self.fault_counts.stale_samples += 1
             return self._frozen_raw
         exact = self._ideal_raw()
         if not math.isfinite(exact):
@@ -269,6 +328,7 @@ class CanopenSlave(abc.ABC):
             exact += float(self._rng.normal(0.0, self._process_noise_rms))
         if self.fault.mode == "noisy" and self.fault.noise_counts_rms > 0.0:
             exact += float(self._rng.normal(0.0, self.fault.noise_counts_rms))
+            self.fault_counts.noisy_samples += 1
         raw = wrap_int32(math.floor(exact + 0.5))  # round half up
         self._last_sample_raw = raw
         return raw
@@ -283,7 +343,7 @@ class CanopenSlave(abc.ABC):
                 self._powered = False
                 self._state = NmtState.INITIALISING
             elif self._fault_mode_seen == "dead":
-                self._power_on()
+                self._power_on(delay_us=self._bootup_delay_us)
             if mode == "stale":
                 if self._last_sample_raw is None:
                     self._sample_raw()
@@ -291,20 +351,26 @@ class CanopenSlave(abc.ABC):
             else:
                 self._frozen_raw = None
             self._fault_mode_seen = mode
-        if self._bootup_pending and self._powered:
-            self._bootup_pending = False
+        if self._powered and self._boot_due_us is not None and self._now_us >= self._boot_due_us:
+            self._boot_due_us = None
             return [self._boot()]
         return []
 
-    def _power_on(self) -> None:
+    def _power_on(self, delay_us: int) -> None:
         self._store.reset()
         self._reset_application()
         self._sdo.reset()
         self._refresh_tpdo_cache()
         self._powered = True
-        self._state = NmtState.INITIALISING
-        self._bootup_pending = True
         self._last_transmitted = None
+        self._start_initialising(delay_us)
+
+    def _start_initialising(self, delay_us: int) -> None:
+        """Silent until the boot-up falls due, `delay_us` from now."""
+        self._state = NmtState.INITIALISING
+        self._next_heartbeat_us = None
+        self._next_event_us = None
+        self._boot_due_us = self._now_us + delay_us
 
     def _boot(self) -> can.Message:
         """Initialisation finished: boot-up frame, Pre-operational, timers restart from now."""
@@ -329,15 +395,18 @@ class CanopenSlave(abc.ABC):
             self._state = NmtState.STOPPED
         elif command == NmtCommand.ENTER_PRE_OPERATIONAL:
             self._state = NmtState.PRE_OPERATIONAL
-        elif command == NmtCommand.RESET_NODE:
-            self._store.reset()
-            self._reset_application()
+        elif command in (NmtCommand.RESET_NODE, NmtCommand.RESET_COMMUNICATION):
+            if command == NmtCommand.RESET_NODE:
+                self._store.reset()
+                self._reset_application()
+            else:
+                self._store.reset(COMMUNICATION_AREA)
             self._refresh_tpdo_cache()
-            return [self._boot()]
-        elif command == NmtCommand.RESET_COMMUNICATION:
-            self._store.reset(COMMUNICATION_AREA)
-            self._refresh_tpdo_cache()
-            return [self._boot()]
+            self._start_initialising(self._bootup_delay_us)
+            if self._bootup_delay_us == 0:
+                self._boot_due_us = None
+                return [self._boot()]
+            return []
         if self._state != previous and self._heartbeat_period_us() > 0:
             # As CANopenNode does (CO_NMT_process): a state change is announced at once.
             self._restart_heartbeat()
@@ -347,6 +416,11 @@ class CanopenSlave(abc.ABC):
     # --- timers ----------------------------------------------------------------------------
     def _heartbeat_period_us(self) -> int:
         return int(self._store.stored_value(_HEARTBEAT_TIME)) * 1000
+
+    def _event_due_us(self) -> int | None:
+        if self._transmission_type < TRANSMISSION_EVENT_MANUFACTURER:
+            return None
+        return self._next_event_us
 
     def _event_period_us(self) -> int:
         return int(self._store.stored_value(_TPDO_COMMUNICATION, 5)) * 1000

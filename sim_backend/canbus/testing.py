@@ -32,10 +32,10 @@ from typing import Any
 from sim_backend.canbus.encoder_node import LinkEncoderNode
 from sim_backend.canbus.force_sensor_node import ForceSensorNode
 from sim_backend.canbus.segment import CanNode, CanSegment, NodeRunner
-from sim_backend.canbus.slave import SensorFault
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S, SensorFault
 from sim_backend.canbus.slcan_pty import SlcanPty
 
-_CHILD_IDLE_WAKEUP_S = 0.002  # the child's timer resolution for heartbeats
+_CHILD_IDLE_WAKEUP_S = 0.05  # the child's longest sleep; the nodes' timers wake it earlier
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,7 @@ class SyntheticEncoder:
     heartbeat_ms: int = 100
     tpdo_transmission_type: int = 1
     seed: int = 0
+    bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,7 @@ class SyntheticForceSensor:
     heartbeat_ms: int = 100
     tpdo_transmission_type: int = 1
     seed: int = 0
+    bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S
 
 
 @dataclass
@@ -95,6 +97,7 @@ def build_node(
             heartbeat_ms=spec.heartbeat_ms,
             seed=spec.seed,
             tpdo_transmission_type=spec.tpdo_transmission_type,
+            bootup_delay_s=spec.bootup_delay_s,
         )
     return ForceSensorNode(
         spec.node_id,
@@ -102,6 +105,7 @@ def build_node(
         heartbeat_ms=spec.heartbeat_ms,
         seed=spec.seed,
         tpdo_transmission_type=spec.tpdo_transmission_type,
+        bootup_delay_s=spec.bootup_delay_s,
     )
 
 
@@ -176,11 +180,18 @@ def _serve_child(
         nodes = {spec.node_id: build_node(spec, clock) for spec in specs}
         segment = CanSegment(nodes.values(), bitrate=bus_bitrate)
         with SlcanPty(bus_bitrate=bus_bitrate) as adapter:
+            # The nodes were powered before anyone connected: their power-on boot-up goes out
+            # now, to a closed channel (sent later, it could pass for the answer to a host's
+            # first NMT reset while the node, in fact, is restarting).
+            for frame in segment.poll(clock()):
+                adapter.send_frame(frame)
             control.send(("ready", adapter.port_path))
             while True:
-                readable, _, _ = select.select(
-                    [adapter.fileno(), control], [], [], _CHILD_IDLE_WAKEUP_S
-                )
+                wait_s = _CHILD_IDLE_WAKEUP_S
+                due_s = segment.next_due_s()
+                if due_s is not None:
+                    wait_s = min(wait_s, max(0.0, due_s - clock()))
+                readable, _, _ = select.select([adapter.fileno(), control], [], [], wait_s)
                 if control in readable:
                     request = control.recv()
                     if request[0] == "stop":

@@ -20,7 +20,7 @@ from sim_backend.dynamixel.control_table import (
     ControlItem,
 )
 from sim_backend.dynamixel.device import H54Device
-from sim_backend.dynamixel.faults import LineFaults
+from sim_backend.dynamixel.faults import FaultCounts, LineFaults
 from sim_backend.dynamixel.line import DynamixelLine, serve_forever
 from sim_backend.dynamixel.protocol import ErrorCode, Instruction, PacketParser, crc16
 
@@ -32,6 +32,7 @@ __all__ = [
     "ControlItem",
     "DynamixelChain",
     "DynamixelLine",
+    "FaultCounts",
     "ErrorCode",
     "H54Device",
     "Instruction",

@@ -121,6 +121,13 @@ class DynamixelChain:
         for listener in self._tick_listeners:
             listener(now_s)
         hearing = [d for d in self.devices if self._hears(d, now_s, line_baud_bps)]
+        self.faults.fired.instructions_unheard += sum(
+            1
+            for d in self.devices
+            if d.dxl_id in self.faults.silent_ids
+            and packet.packet_id in (d.dxl_id, BROADCAST_ID)
+            and d.available(now_s)
+        )
         instruction_baud = line_baud_bps or (hearing[0].baud_bps if hearing else _FALLBACK_BAUD_BPS)
         schedule = _ReplySchedule(
             now_s + wire_time_s(packet.wire_bytes, instruction_baud), line_baud_bps, self.faults

@@ -11,6 +11,21 @@ from dataclasses import dataclass, field
 
 
 @dataclass
+class FaultCounts:
+    """How often each line fault actually fired (history: `LineFaults.clear` keeps it).
+
+    replies_dropped: status packets lost (drop_reply_ids, drop_next_replies).
+    replies_corrupted: status packets sent with a wrong CRC (corrupt_crc_ids, ...next_replies).
+    instructions_unheard: instructions a device on `silent_ids` did not hear although they were
+        for it (addressed to its ID, or broadcast); one per device and instruction.
+    """
+
+    replies_dropped: int = 0
+    replies_corrupted: int = 0
+    instructions_unheard: int = 0
+
+
+@dataclass
 class LineFaults:
     """What the line does to traffic right now.
 
@@ -28,9 +43,10 @@ class LineFaults:
     corrupt_crc_ids: set[int] = field(default_factory=set)
     drop_next_replies: int = 0
     corrupt_next_replies: int = 0
+    fired: FaultCounts = field(default_factory=FaultCounts)
 
     def clear(self) -> None:
-        """Back to a healthy line."""
+        """Back to a healthy line (`fired` keeps counting)."""
         self.silent_ids.clear()
         self.drop_reply_ids.clear()
         self.corrupt_crc_ids.clear()
@@ -40,17 +56,21 @@ class LineFaults:
     def take_drop(self, dxl_id: int) -> bool:
         """Whether the reply from `dxl_id` is lost (consumes one `drop_next_replies`)."""
         if dxl_id in self.drop_reply_ids:
+            self.fired.replies_dropped += 1
             return True
         if self.drop_next_replies > 0:
             self.drop_next_replies -= 1
+            self.fired.replies_dropped += 1
             return True
         return False
 
     def take_corrupt(self, dxl_id: int) -> bool:
         """Whether the reply from `dxl_id` gets a bad CRC (consumes one `corrupt_next_replies`)."""
         if dxl_id in self.corrupt_crc_ids:
+            self.fired.replies_corrupted += 1
             return True
         if self.corrupt_next_replies > 0:
             self.corrupt_next_replies -= 1
+            self.fired.replies_corrupted += 1
             return True
         return False

@@ -146,6 +146,9 @@ class _ChildEmulator:
     def cmd_clear_faults(self) -> None:
         self.chain.faults.clear()
 
+    def cmd_fault_counts(self) -> dict[str, int]:
+        return asdict(self.chain.faults.fired)
+
     def cmd_stats(self) -> dict[str, int]:
         return {
             **asdict(self.line.stats),
@@ -280,6 +283,11 @@ class EmulatedChain:
     def stats(self) -> dict[str, int]:
         """Line and parser counters (bytes, replies, CRC errors, byte timeouts, ...)."""
         return self.command("stats")
+
+    def fault_counts(self) -> dict[str, int]:
+        """How often each line fault fired so far (`FaultCounts`: replies_dropped,
+        replies_corrupted, instructions_unheard): a test asserts its fault really happened."""
+        return self.command("fault_counts")
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """Stop the child (politely, then by force). Safe to call twice."""

@@ -68,6 +68,7 @@ class EmulatedHumanoid:
                 lambda side=side: robot.foot_wrench(side),
                 heartbeat_ms=spec.heartbeat_ms,
                 seed=spec.seed * 7919 + 500 + side,
+                bootup_delay_s=spec.can_bootup_delay_s,
             )
             for side, node_id in enumerate(humanoid.ft_sensor_node_ids)
             if node_id

@@ -26,7 +26,9 @@ from drivers.canbus import (
     link_angle_rad_from_counts,
 )
 from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, NodeRunner
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
 from sim_backend.canbus.testing import serve_in_background
+from tests.support.load_conditions import timing_is_unreliable
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -47,6 +49,9 @@ class Rig:
         self.nodes = nodes
         self.node_bus = can.Bus(interface="virtual", channel=channel)
         self.runner = NodeRunner(self.node_bus, CanSegment(nodes))
+        # The nodes were powered before the reader came: their power-on boot-up is history
+        # (had it arrived after the reader's NMT reset, it would pass for the reset's answer).
+        self.runner.pump(self.now_s)
         self.reader = LinkEncoderReader(
             can.Bus(interface="virtual", channel=channel),
             encoders,
@@ -57,8 +62,21 @@ class Rig:
         self.description = f"virtual {channel}"
 
     def serve_while(self, action) -> None:
-        with serve_in_background(self.runner, lambda: self.now_s):
+        """Serve the nodes while `action` blocks (canopen's SDO client); the shared clock runs
+        in real time meanwhile, so that a node booting after an NMT reset gets there."""
+        base_s, started = self.now_s, time.monotonic()
+
+        def running_clock() -> float:
+            self.now_s = max(self.now_s, base_s + time.monotonic() - started)
+            return self.now_s
+
+        with serve_in_background(self.runner, running_clock):
             action()
+        # Lock-step ticks resume on a fixed grid whatever the real time the action took, so
+        # that sessions stay deterministic: the next multiple of 10 s.
+        self.now_s = 10.0 * (math.floor(base_s / 10.0) + 1)
+        assert self.now_s > base_s + time.monotonic() - started, "serving took over 10 s"
+        self.runner.pump(self.now_s)  # the heartbeats overdue after the jump go out now
 
     def open(self) -> None:
         self.serve_while(self.reader.open)
@@ -260,8 +278,12 @@ def test_dead_node_invalid_growing_age_and_no_blocking_past_the_timeout(testbeds
         stale.append(bool(reading.stale[0]))
         lost.append(bool(reading.heartbeat_lost[0]))
         assert not reading.heartbeat_lost[1]
-    # waits its timeout, not more (slack for a loaded 2-core machine in the max)
-    assert np.median(elapsed) < timeout_s + 0.005 and max(elapsed) < timeout_s + 0.1
+    # waits its timeout, not more (slack for a loaded 2-core machine in the max; more, and
+    # why, when it is loaded)
+    reason = timing_is_unreliable(client_spins=True)
+    slack_s = (0.005, 0.1) if reason is None else (0.05, 1.0)
+    assert np.median(elapsed) < timeout_s + slack_s[0], reason
+    assert max(elapsed) < timeout_s + slack_s[1], reason
     np.testing.assert_allclose(ages[:4], [0.005, 0.010, 0.015, 0.020], atol=1e-9)
     assert all(later > earlier for earlier, later in zip(ages, ages[1:], strict=False))
     assert stale[:3] == [False, False, False] and all(stale[5:])  # stale_after_s = 0.02
@@ -290,10 +312,11 @@ def test_reboot_is_reported_and_recover_node_restores_it(testbeds) -> None:
     testbed.open()
     nodes[1].fault.mode = "dead"
     testbed.tick()
-    nodes[1].fault.mode = "ok"  # power returns: boot-up, Pre-operational, defaults
-    events = testbed.tick().events
-    reading = testbed.tick()
-    events += reading.events
+    nodes[1].fault.mode = "ok"  # power returns: boot-up after its delay, Pre-op, defaults
+    events: tuple[str, ...] = ()
+    for _ in range(2 + math.ceil(DEFAULT_BOOTUP_DELAY_S / TICK_S)):
+        reading = testbed.tick()
+        events += reading.events
     assert any("node 6" in event and "boot-up" in event for event in events)
     assert reading.nmt_state == ("OPERATIONAL", "PRE-OPERATIONAL")
     assert reading.valid.tolist() == [True, False]
@@ -363,6 +386,7 @@ def test_close_can_stop_the_nodes_and_always_releases_the_bus(testbeds) -> None:
         testbed.reader.close(nmt_command="OFF")
 
 
+@pytest.mark.timing
 def test_round_trip_latency_in_process(testbeds) -> None:
     """SYNC -> all TPDOs, lock-step on the virtual bus (2 encoders + force sensor)."""
     nodes = [
@@ -385,7 +409,8 @@ def test_round_trip_latency_in_process(testbeds) -> None:
         assert reading.all_valid
     median, p99 = np.percentile(round_trips, [50, 99]) * 1e3
     print(f"\nin-process lock-step SYNC -> 3 TPDOs: median {median:.3f} ms, p99 {p99:.3f} ms")
-    assert median < 5.0  # fits a 200 Hz tick with room to spare
+    reason = timing_is_unreliable(client_spins=True)  # one process: the load is what counts
+    assert median < (5.0 if reason is None else 50.0), reason  # fits a 200 Hz tick
 
 
 def test_node_without_heartbeat_is_read_but_its_state_is_not_monitored(testbeds) -> None:

@@ -22,6 +22,7 @@ from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, Nod
 from sim_backend.canbus.encoder_node import ENCODER_EDS_FILE
 from sim_backend.canbus.force_sensor_node import FORCE_SENSOR_EDS_FILE
 from sim_backend.canbus.object_store import eds_path
+from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
 from sim_backend.canbus.testing import serve_in_background
 
 pytestmark = pytest.mark.timeout(30)
@@ -394,7 +395,9 @@ def test_dead_node_answers_nothing_and_reboots_when_power_returns(wire_factory) 
     assert wire.sync() == []
     assert wire.step(1.0) == []  # no heartbeat either
     node.fault.mode = "ok"
-    frames = wire.step(0.001)
+    assert wire.step(0.001) == []  # power is back: the node initialises first (boot-up delay)
+    assert node.booting
+    frames = wire.step(DEFAULT_BOOTUP_DELAY_S)
     assert [(f.arbitration_id, bytes(f.data)) for f in frames] == [(0x705, b"\x00")]
     assert node.nmt_state == 0x7F
     assert wire.sync() == []  # must be started again

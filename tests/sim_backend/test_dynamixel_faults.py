@@ -16,11 +16,11 @@ from dynamixel_sdk import (
     COMM_SUCCESS,
     GroupSyncRead,
     PacketHandler,
-    PortHandler,
 )
 
 from sim_backend.dynamixel.protocol import HEADER, Instruction, build_instruction_packet
 from sim_backend.dynamixel.testing import EmulatedChain, spawn_emulated_chain
+from tests.support.load_conditions import PatientPortHandler
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -35,7 +35,7 @@ FOREIGN_ID = 200  # an ID nobody on the line has
 class Bus:
     def __init__(self, emu: EmulatedChain, baud: int = 4_000_000) -> None:
         self.emu = emu
-        self.port = PortHandler(emu.port_path)
+        self.port = PatientPortHandler(emu.port_path)
         self.ph = PacketHandler(2.0)
         assert self.port.openPort()
         assert self.port.setBaudRate(baud)
@@ -153,7 +153,9 @@ def test_truncated_packet_then_idle_is_dropped(realtime: bool) -> None:
         bus = Bus(emu)
         read = build_instruction_packet(1, Instruction.READ, b"\x63\x02\x04\x00")
         bus.port.writePort(read[:8])
-        time.sleep(0.01)  # the line is idle far longer than 1.5 ms
+        # The line stays idle until the emulator itself has timed the fragment out (its own
+        # counter; a fixed sleep assumed it would be scheduled within 10 ms)
+        wait_until(partial(byte_timeouts_exceed, emu, 0))
         # had the fragment been kept, the ping would complete it into a frame with a bad CRC
         # and the SDK would get a CRC-error status from ID 1
         assert bus.ph.ping(bus.port, 1) == (MODEL_H54, COMM_SUCCESS, 0)

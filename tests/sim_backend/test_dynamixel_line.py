@@ -234,8 +234,14 @@ def test_byte_timeout_drops_a_truncated_packet_after_real_idle(
 def test_drain_handles_everything_waiting(instant: tuple[DynamixelLine, Host]) -> None:
     line, host = instant
     host.send(PING_1 * 3)
-    time.sleep(0.01)
-    line.drain()
+    wait_readable(line)  # the pty has passed the bytes on (no fixed sleep: a loaded kernel
+    line.drain()  # may take longer than any), and drain() takes all that is there
+    deadline = time.monotonic() + 5.0
+    while line.stats.bytes_in < 3 * len(PING_1):  # the rest, if the pty passed it in pieces
+        assert time.monotonic() < deadline, f"only {line.stats.bytes_in} bytes arrived"
+        wait_readable(line)
+        line.drain()
+    assert line.stats.replies_sent == 3
     assert len(host.receive()) == 3
 
 

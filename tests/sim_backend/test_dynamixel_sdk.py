@@ -18,7 +18,6 @@ from dynamixel_sdk import (
     GroupSyncRead,
     GroupSyncWrite,
     PacketHandler,
-    PortHandler,
 )
 
 from sim_backend.dynamixel.protocol import (
@@ -28,6 +27,7 @@ from sim_backend.dynamixel.protocol import (
     build_instruction_packet,
 )
 from sim_backend.dynamixel.testing import EmulatedChain, spawn_emulated_chain
+from tests.support.load_conditions import PatientPortHandler
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -68,7 +68,7 @@ class Bus:
 
     def __init__(self, emu: EmulatedChain, baud: int = BAUD_4M) -> None:
         self.emu = emu
-        self.port = PortHandler(emu.port_path)
+        self.port = PatientPortHandler(emu.port_path)
         self.ph = PacketHandler(2.0)
         assert self.port.openPort(), f"could not open {emu.port_path}"
         assert self.port.setBaudRate(baud)

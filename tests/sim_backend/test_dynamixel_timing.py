@@ -20,12 +20,18 @@ import pytest
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, PacketHandler, PortHandler
 
 from sim_backend.dynamixel.testing import spawn_emulated_chain
+from tests.support.load_conditions import PatientPortHandler, timing_is_unreliable
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.timing]
 
 PRESENT_POSITION_ADDR = 611
 READ_4_WIRE_BYTES = 14 + 15  # READ instruction + status with 4 data bytes
 OVERHEAD_BOUND_S = 1.5e-3  # measured overhead is ~0.1-0.3 ms; leave room for a loaded machine
+# When `timing_is_unreliable` gives a reason (a loaded machine, an emulator without real-time
+# scheduling), the bounds relax to what still tells a working line from a broken one.
+LOADED_OVERHEAD_BOUND_S = 20e-3
+INSTANT_MEDIAN_BOUND_S = 5e-3
+LOADED_INSTANT_MEDIAN_BOUND_S = 50e-3
 
 
 def sample_s(call: Callable[[], object], count: int, warmup: int = 5) -> list[float]:
@@ -84,6 +90,7 @@ def test_realtime_round_trip_grows_with_return_delay_and_falls_with_baud() -> No
     """Never earlier than the wire model (the emulator timestamps a request after the host
     wrote it); usually (lower quartile) within the overhead bound of it."""
     samples: dict[tuple[int, int], list[float]] = {}
+    reasons = set()
     for return_delay_units in (0, 250):
         with spawn_emulated_chain(
             ids=(1,),
@@ -91,6 +98,7 @@ def test_realtime_round_trip_grows_with_return_delay_and_falls_with_baud() -> No
             realtime=True,
             eeprom_overrides={"Return Delay Time": return_delay_units},
         ) as emu:
+            reasons.add(timing_is_unreliable(bool(emu.stats()["sched_fifo"])))
             port = PortHandler(emu.port_path)
             ph = PacketHandler(2.0)
             assert port.openPort()
@@ -101,15 +109,21 @@ def test_realtime_round_trip_grows_with_return_delay_and_falls_with_baud() -> No
                     partial(read4_sleeping, ph, port, 1), count
                 )
             port.closePort()
+    reason = next((r for r in reasons if r), None)
+    bound_s = OVERHEAD_BOUND_S if reason is None else LOADED_OVERHEAD_BOUND_S
     typical = {key: lower_quartile(values) for key, values in samples.items()}
     for (baud_bps, return_delay_units), values in samples.items():
         model_s = read4_model_s(baud_bps, return_delay_units)
         measured_s = typical[(baud_bps, return_delay_units)]
         assert values[0] >= model_s, f"a reply came {model_s - values[0]:.6f} s early"
-        assert measured_s <= model_s + OVERHEAD_BOUND_S, (
+        assert measured_s <= model_s + bound_s, (
             f"{baud_bps} bps, RDT {return_delay_units}: lower quartile "
             f"{measured_s * 1e3:.3f} ms, wire model {model_s * 1e3:.3f} ms"
+            + (f" (bound relaxed: {reason})" if reason else "")
         )
+    if reason is not None:
+        print(f"\nsub-millisecond differences not checked: {reason}")
+        return
     for baud_bps in (57_600, 1_000_000):  # Return Delay Time 250 adds 0.5 ms
         added_s = typical[(baud_bps, 250)] - typical[(baud_bps, 0)]
         assert added_s == pytest.approx(500e-6, abs=300e-6)
@@ -122,6 +136,7 @@ def test_realtime_round_trip_grows_with_return_delay_and_falls_with_baud() -> No
 def test_realtime_sync_read_replies_come_one_after_another() -> None:
     ids = (1, 2, 3)
     with spawn_emulated_chain(ids=ids, baud_index=3, realtime=True) as emu:
+        reason = timing_is_unreliable(bool(emu.stats()["sched_fifo"]))
         port = PortHandler(emu.port_path)
         ph = PacketHandler(2.0)
         assert port.openPort() and port.setBaudRate(1_000_000)
@@ -140,8 +155,10 @@ def test_realtime_sync_read_replies_come_one_after_another() -> None:
     model_s = 17 * 10 / 1e6 + 3 * (500e-6 + 15 * 10 / 1e6)
     measured_s = lower_quartile(values)
     assert values[0] >= model_s
-    assert measured_s <= model_s + OVERHEAD_BOUND_S, (
+    bound_s = OVERHEAD_BOUND_S if reason is None else LOADED_OVERHEAD_BOUND_S
+    assert measured_s <= model_s + bound_s, (
         f"measured {measured_s * 1e3:.3f} ms, wire model {model_s * 1e3:.3f} ms"
+        + (f" (bound relaxed: {reason})" if reason else "")
     )
 
 
@@ -149,7 +166,8 @@ def test_instant_mode_round_trips() -> None:
     """The report's figures: SDK round trips against the emulator in instant mode."""
     ids = tuple(range(1, 13))
     with spawn_emulated_chain(ids=ids, baud_index=6) as emu:
-        port = PortHandler(emu.port_path)
+        sched_fifo = bool(emu.stats()["sched_fifo"])
+        port = PatientPortHandler(emu.port_path)  # a late reply is slow, not lost
         ph = PacketHandler(2.0)
         assert port.openPort() and port.setBaudRate(4_000_000)
         one = GroupSyncRead(port, ph, PRESENT_POSITION_ADDR, 12)
@@ -177,5 +195,11 @@ def test_instant_mode_round_trips() -> None:
     print()
     for name, seconds in figures.items():
         print(f"instant-mode median round trip, {name}: {seconds * 1e6:.0f} us")
-    assert all(seconds < 5e-3 for seconds in figures.values()), figures
+    # The SDK busy-waits here: the client competes for a CPU too, so load counts even when the
+    # emulator has real-time scheduling.
+    reason = timing_is_unreliable(sched_fifo, client_spins=True)
+    bound_s = INSTANT_MEDIAN_BOUND_S if reason is None else LOADED_INSTANT_MEDIAN_BOUND_S
+    if reason:
+        print(f"bound relaxed to {bound_s * 1e3:.0f} ms: {reason}")
+    assert all(seconds < bound_s for seconds in figures.values()), figures
     assert figures["sync read 12 B x 12 IDs"] > figures["sync read 12 B x 1 ID"]

@@ -1,0 +1,96 @@
+"""Direction -1 and non-zero offsets, end to end on the wire: the emulated testbed mounts its
+actuator and link encoder reversed and offset, the drivers are configured the same way, and the
+SI values must come out as the plant's true angles.
+
+The emulator runs in its own process (`emulator_process`), lock-step: its first SYNC samples
+the plant at t = 0, where the state is known in closed form (the plant starts in static
+balance, `TestbedPlant.settle_statically`): link angle theta0 and motor angle
+theta0 + m g r cos(theta0) / K (the gear deflects by -m g r cos(theta0) / K under gravity).
+A direction hard-wired to +1 anywhere on the way (node, driver, server) flips a sign or the
+offset and misses these values by far more than the few counts allowed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drivers.canbus import LinkEncoderConfig
+from drivers.dynamixel import DynamixelChainConfig, DynamixelJointConfig
+from drivers.dynamixel_can_bus import DynamixelCanBus, DynamixelCanBusConfig
+from sim_backend.emulator_process import emulator_process
+from sim_backend.plant import TestbedPlantParams as PlantParams
+from sim_backend.server import EmulatedJointSpec, EmulatorSpec
+
+pytestmark = pytest.mark.timeout(90)
+
+THETA0_RAD = 0.15
+MOTOR_DIRECTION, MOTOR_OFFSET_RAD = -1, 0.2
+ENCODER_DIRECTION, ENCODER_OFFSET_RAD = -1, 0.3
+PULSE_RAD = 2 * math.pi / 501_923  # H54-200-S500-R (e-Manual)
+COUNT_RAD = 2 * math.pi / 983_040  # RLC2IC on MR075 (RLS data sheets)
+
+
+def bus_for(endpoints: dict) -> DynamixelCanBus:
+    config = DynamixelCanBusConfig(
+        joint_names=("joint",),
+        dynamixel=DynamixelChainConfig(
+            port=endpoints["dynamixel_port"],
+            baudrate=endpoints["baudrate"],
+            joints=(
+                DynamixelJointConfig(
+                    dxl_id=1,
+                    direction=MOTOR_DIRECTION,
+                    offset_rad=MOTOR_OFFSET_RAD,
+                    min_position_rad=-1.5,
+                    max_position_rad=1.5,
+                ),
+            ),
+            latency_timer_ms=50.0,  # lock-step: the emulator answers every request
+        ),
+        encoders=(
+            LinkEncoderConfig(5, direction=ENCODER_DIRECTION, offset_rad=ENCODER_OFFSET_RAD),
+        ),
+        can_bus_kwargs=endpoints["can"],
+        link_timeout_s=0.2,
+    )
+    return DynamixelCanBus(config)
+
+
+def test_reversed_and_offset_mountings_read_the_true_angles_and_move_the_right_way() -> None:
+    plant = PlantParams(initial_link_angle_rad=THETA0_RAD)
+    spec = EmulatorSpec(
+        joints=(
+            EmulatedJointSpec(
+                dxl_id=1,
+                encoder_node_id=5,
+                encoder_direction=ENCODER_DIRECTION,
+                encoder_offset_rad=ENCODER_OFFSET_RAD,
+                motor_direction=MOTOR_DIRECTION,
+                motor_offset_rad=MOTOR_OFFSET_RAD,
+            ),
+        ),
+        plant=plant,
+    )
+    sag_rad = plant.gravity_m_s2 * plant.gravity_moment_kg_m * math.cos(THETA0_RAD)
+    sag_rad /= plant.gear_stiffness_nm_per_rad
+    with emulator_process(spec) as emulator:
+        bus = bus_for(emulator.endpoints)
+        with bus:
+            first = bus.read()  # the first SYNC: the plant at t = 0
+            assert first.motor_valid.all() and first.link_valid.all()
+            assert abs(first.link_angle_rad[0] - THETA0_RAD) <= 2 * COUNT_RAD
+            assert abs(first.motor_angle_rad[0] - (THETA0_RAD + sag_rad)) <= 2 * PULSE_RAD
+            # A goal 0.1 rad up in the joint frame moves motor and link up.
+            bus.enable()
+            goal = first.motor_angle_rad + 0.1
+            for _ in range(200):  # 1 s of plant time
+                bus.write(goal)
+                last = bus.read()
+            bus.disable()
+    moved = last.motor_angle_rad[0] - first.motor_angle_rad[0]
+    assert 0.08 < moved < 0.11
+    assert np.sign(last.link_angle_rad[0] - first.link_angle_rad[0]) == 1
+    assert abs((last.link_angle_rad[0] - first.link_angle_rad[0]) - moved) < 0.01
