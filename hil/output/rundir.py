@@ -99,3 +99,14 @@ def _read_json(path: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     return json.loads(path.read_text())
+
+
+def add_to_summary(out_dir: Path, key: str, value: Any) -> None:
+    """One more entry in a finished run's summary.json (what was learnt after the run ended,
+    e.g. from the emulator), written atomically."""
+    path = Path(out_dir) / "summary.json"
+    summary = _read_json(path)
+    summary[key] = value
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    tmp.replace(path)

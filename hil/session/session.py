@@ -33,7 +33,7 @@ from hil.output.channels import MessageSink
 from hil.output.plots import plot_run
 from hil.output.progress import Progress
 from hil.output.records import RunResult
-from hil.output.rundir import load_run, timestamp, unique_dir
+from hil.output.rundir import add_to_summary, load_run, timestamp, unique_dir
 from hil.output.versions import package_versions
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
@@ -89,6 +89,8 @@ class Session:
     progress: Progress | None = None
     progress_done: float = 0.0
     sinks: tuple[MessageSink, ...] = ()  # the live view (`hil run --live`), owned by the caller
+    # what the last embedded emulator said its injected faults did (see `_record_fault_counts`)
+    emulator_fault_counts: dict[str, Any] = field(default_factory=dict)
 
     @property
     def description(self) -> str:
@@ -150,6 +152,7 @@ class Session:
                 yield Connection.from_endpoints(endpoints, self.config)
             finally:
                 emulator.stop()  # also after Ctrl-C during start-up: no child left behind
+                self.emulator_fault_counts = emulator.fault_counts
         elif self.setup is Setup.ATTACHED:
             assert self.attach is not None
             yield Connection.from_endpoints(self.attach, self.config).with_overrides(**overrides)
@@ -215,10 +218,13 @@ class Session:
         self.say(
             f"hil run: {experiment.name} with {choice.label} on the {self.description} -> {out_dir}"
         )
+        self.emulator_fault_counts = {}
         with self.bus(experiment, faults, clock) as (bus, connection):
             meta = self._meta(experiment, choice, faults, overruns, clock, connection)
             meta["bus"] = bus.describe()
             result = run_experiment(self.config, request, bus, clock, meta, stop=stop)
+        if faults:
+            self._record_fault_counts(out_dir, faults)
         if self.plots and result.ticks > 1:
             try:
                 run = load_run(out_dir)
@@ -228,6 +234,18 @@ class Session:
         if print_result:
             self._print_result(experiment, choice, result)
         return result
+
+    def _record_fault_counts(self, out_dir: Path, faults: tuple[FaultEvent, ...]) -> None:
+        """What the emulator says its injected faults did, into summary.json; a fault that never
+        acted (after the run's end, or on a part the run never touched) is said out loud."""
+        counts = self.emulator_fault_counts
+        if not counts:
+            return
+        add_to_summary(out_dir, "emulator_fault_counts", counts)
+        started = set(counts.get("scenario_faults_started", []))
+        for number, fault in enumerate(faults):
+            if number not in started:
+                self.say(f"  note: the injected fault {fault.kind}@{fault.start_s:g} never acted")
 
     def _progress(self, label: str) -> Callable[[float, float], None]:
         def report(time_s: float, total_s: float) -> None:

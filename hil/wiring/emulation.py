@@ -209,6 +209,8 @@ class EmbeddedEmulator:
         self.endpoints: dict[str, Any] = {}
         self._spec_file: Path | None = None
         self._stderr: Any = None
+        # The emulator's last line after it stopped: how often each injected fault acted.
+        self.fault_counts: dict[str, Any] = {}
 
     def start(self) -> dict[str, Any]:
         """Start the child and read its endpoints; on any failure or interrupt, stop it."""
@@ -272,6 +274,8 @@ class EmbeddedEmulator:
                 process.kill()
                 process.wait()
         if process is not None and process.stdout is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self.fault_counts = _fault_counts(process.stdout.read())
             process.stdout.close()
         if getattr(self, "_stderr", None) is not None:
             self._stderr.close()
@@ -292,3 +296,13 @@ def _usb_latency_ms(config: Config) -> float:
     """The emulated adapter's latency timer: [emulator] usb_latency_timer_ms, or the chain's."""
     configured = config.emulator.usb_latency_timer_ms
     return config.dynamixel[0].latency_timer_ms if configured is None else configured
+
+
+def _fault_counts(rest_of_stdout: str) -> dict[str, Any]:
+    """The `{"fault_counts": ...}` line `hil emulate` prints when it stops ({} if none)."""
+    for line in reversed(rest_of_stdout.splitlines()):
+        with contextlib.suppress(json.JSONDecodeError):
+            record = json.loads(line)
+            if isinstance(record, dict) and "fault_counts" in record:
+                return dict(record["fault_counts"])
+    return {}
