@@ -30,7 +30,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,7 +49,7 @@ from hil.output.plots import (
 )
 from hil.output.plots import Push as PushMark
 from hil.output.records import RunEntry
-from hil.output.report import Column, Relation, check, find, metric, number
+from hil.output.report import Column, Missing, Relation, check, find, metric, number
 from hil.output.rundir import RunData
 from hil.vocabulary import ControllerKind
 
@@ -306,13 +306,33 @@ def standing_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
             f"{without * 1e3:.1f} mm"
         )
 
+    def stands(kind: ControllerKind) -> Callable[[], tuple[bool, str]]:
+        def test() -> tuple[bool, str]:
+            entry = find(entries, exp, kind)
+            if entry is None:
+                raise Missing(f"no {kind} run")
+            rms = metric(entry, "zmp_rms_error_m", str(kind))
+            return entry.result.ok, f"{entry.result.ending}, ZMP rms error {rms * 1e3:.1f} mm"
+
+        return test
+
     return [
         check(
             exp,
             "the gravity compensator keeps the pelvis more upright than position control alone",
             "GC makes the joints hold the desired angles under gravity (Sec. III-A)",
             gc_helps,
-        )
+        ),
+        *(
+            check(
+                exp,
+                f"{kind} holds the robot standing to the end, without a safety stop",
+                "the paper walks DYROS-JET with GC+LQR and GC+LQR+DOB (Sec. IV-C, Fig. 7): "
+                "standing comes first",
+                stands(kind),
+            )
+            for kind in (ControllerKind.GC_LQR, ControllerKind.GC_LQR_DOB)
+        ),
     ]
 
 
