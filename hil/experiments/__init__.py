@@ -6,6 +6,9 @@
     impact-long   the impact held a minute: the error after the push at its equilibrium
     stand         DYROS-JET's legs hold the walking-ready posture (double support)
     push          the same, pushed at the pelvis
+    walk-slow     DYROS-JET walks, 0.8 s single / 3.2 s double support (Fig. 7(a))
+    walk-dynamic  the same at 0.8 s / 0.3 s (Fig. 7(b))
+    step-on-object  the dynamic walk over a box the plan does not know (Fig. 8)
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
 name that does not exist.
@@ -15,12 +18,26 @@ from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperi
 from hil.experiments.contact import CONTACT, CONTACT_LONG
 from hil.experiments.humanoid import PUSH, STAND
 from hil.experiments.impact import IMPACT, IMPACT_LONG
+from hil.experiments.walking import STEP_ON_OBJECT, WALK_DYNAMIC, WALK_SLOW
 
 EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG, STAND, PUSH)
+    e.name: e
+    for e in (
+        CONTACT,
+        IMPACT,
+        CONTACT_LONG,
+        IMPACT_LONG,
+        STAND,
+        PUSH,
+        WALK_SLOW,
+        WALK_DYNAMIC,
+        STEP_ON_OBJECT,
+    )
 }
 # Which robot each experiment is for (`hil run NAME` picks the robot's built-in configuration).
-ROBOT_OF_EXPERIMENT: dict[str, str] = {"stand": "dyros-jet", "push": "dyros-jet"}
+ROBOT_OF_EXPERIMENT: dict[str, str] = {
+    name: "dyros-jet" for name in ("stand", "push", "walk-slow", "walk-dynamic", "step-on-object")
+}
 
 
 def robot_of_experiment(name: str | None) -> str:
@@ -47,6 +64,9 @@ __all__ = [
     "PUSH",
     "ROBOT_OF_EXPERIMENT",
     "STAND",
+    "STEP_ON_OBJECT",
+    "WALK_DYNAMIC",
+    "WALK_SLOW",
     "Experiment",
     "Obstacle",
     "Push",

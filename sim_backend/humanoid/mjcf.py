@@ -232,8 +232,8 @@ def build_mjcf(
     )
     boxes = "".join(
         f'\n    <geom name="{FLOOR_BOX_PREFIX}{i}" type="box" '
-        f'pos="{_vec((*box.centre_m, box.height_m / 2))}" size="{_vec(np.asarray(box.size_m) / 2)}" '
-        f"{contact}/>"
+        f'pos="{_vec((*box.centre_m, box.height_m / 2))}" '
+        f'size="{_vec(np.asarray(box.size_m) / 2)}" {contact}/>'
         for i, box in enumerate(floor_boxes)
     )
     return f"""<mujoco model="{description.name}">
