@@ -24,6 +24,7 @@ FOOT_COLOUR = "#9b59b6"  # the paper's purple foot placements
 LEG_COLOURS = ("tab:blue", "tab:red")  # left, right
 N_FRAMES = 8
 LEG_CHAIN = ("HipRoll", "KneePitch", "AnkleRoll")
+ZMP_AXIS_M = (-0.35, 0.35)  # the feet and a margin: a fallen robot's estimate leaves the plot
 
 
 def _planted_intervals(experiment: Any) -> list[tuple[int, float, float, Any]]:
@@ -87,6 +88,7 @@ def lateral_zmp_figure(
         style = entry.style.kwargs()
         style["linestyle"] = "-"
         ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label="measured", **style)
+        ax.set_ylim(*ZMP_AXIS_M)
         _mark_fall(ax, entry, kinematics)
         ax.set_ylabel(f"{entry.label}\nZMP y [m]")
         ax.grid(True, alpha=0.3)
@@ -107,10 +109,28 @@ def _paper_order(runs: Sequence[ComparisonRun]) -> list[ComparisonRun]:
 
 
 def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: Any) -> None:
-    fell_at = kinematics.fall_time_s()
-    if fell_at is not None:
-        ax.axvline(fell_at, color="r", lw=0.8, ls=":")
-        ax.text(fell_at, ax.get_ylim()[1], " fell", color="r", va="top", fontsize=7)
+    """The fall (red) and the safety stop (black) on a time axis."""
+    from hil.experiments.walking import _stopped_at_s
+
+    for when, what, colour in (
+        (kinematics.fall_time_s(), "fell", "r"),
+        (_stopped_at_s(entry.run), "safety stop", "k"),
+    ):
+        if when is not None:
+            ax.axvline(when, color=colour, lw=0.8, ls=":")
+            ax.text(when, ax.get_ylim()[1], f" {what}", color=colour, va="top", fontsize=7)
+
+
+def _row_label(entry: ComparisonRun, kinematics: Any) -> str:
+    from hil.experiments.walking import _stopped_at_s
+
+    label = entry.label.replace(" (", "\n(")
+    fell, stopped = kinematics.fall_time_s(), _stopped_at_s(entry.run)
+    if stopped is not None:
+        label += f"\nstop {stopped:.2f} s"
+    if fell is not None:
+        label += f"\nfell {fell:.2f} s"
+    return label
 
 
 def _frame_times(experiment: Any) -> np.ndarray:
@@ -204,9 +224,10 @@ def step_sequence_figure(
             if row == 0:
                 ax.set_title(f"{time_s:.2f} s", fontsize=7)
             if column == 0:
-                ax.set_ylabel(entry.label, fontsize=8)
+                ax.set_ylabel(_row_label(entry, kinematics), fontsize=7)
     zmp_ax.set_xlabel("time [s]")
     zmp_ax.set_ylabel("ZMP y [m]")
+    zmp_ax.set_ylim(*ZMP_AXIS_M)
     zmp_ax.grid(True, alpha=0.3)
     zmp_ax.set_xlim(0.0, pattern.time_s[-1])
     zmp_ax.legend(fontsize=7, loc="upper right", ncol=5)
