@@ -156,28 +156,67 @@ def _leg_points(model: Any, side: int) -> np.ndarray:
     return np.array(points)
 
 
+def _draw_frame(
+    ax: Any, experiment: Any, kinematics: Any, time_s: float, anchors: np.ndarray
+) -> None:
+    """One moment of Fig. 8: the box, the ground and both legs (side view) from the link
+    angles logged nearest `time_s`, or "stopped" when the log has none."""
+    from matplotlib.patches import Rectangle
+
+    from hil.experiments.walking import _leg_model, _placed_configuration
+
+    model = _leg_model()
+    pattern = experiment.pattern
+    half_length = model.sole_boxes[0].size_m[0] / 2.0
+    for box in experiment.world.floor_objects:
+        ax.add_patch(
+            Rectangle(
+                (box.centre_m[0] - box.size_m[0] / 2, 0.0),
+                box.size_m[0],
+                box.height_m,
+                color="0.5",
+            )
+        )
+    ax.axhline(0.0, color="k", lw=0.8)
+    rows = np.flatnonzero(np.abs(kinematics.time_s - time_s) < 0.5 * kinematics.period_s)
+    if rows.size and np.isfinite(kinematics.links_rad[rows[0]]).all():
+        tick = min(pattern.n_ticks - 1, int(round(time_s / pattern.dt_s)))
+        _placed_configuration(
+            model, kinematics.links_rad[rows[0]], int(anchors[tick]), pattern, tick
+        )
+        for side in (1, 0):  # the left leg on top
+            points = _leg_points(model, side)
+            ax.plot(points[:, 0], points[:, 2], "-o", color=LEG_COLOURS[side], ms=2, lw=1.5)
+            sole = points[-1]
+            ax.plot(
+                [sole[0] - half_length, sole[0] + half_length],
+                [sole[2], sole[2]],
+                color=LEG_COLOURS[side],
+                lw=2.5,
+            )
+    else:
+        ax.text(0.5, 0.5, "stopped", transform=ax.transAxes, ha="center", fontsize=7)
+    ax.set_xlim(0.05, 0.95)
+    ax.set_ylim(-0.03, 0.95)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
 def step_sequence_figure(
     experiment: Any, runs: Sequence[ComparisonRun], path: Path, setup: str
 ) -> Path:
     """Fig. 8: stick figures (side view) of every controller's legs around the object step."""
     from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
 
-    from hil.experiments.walking import (
-        WalkingKinematics,
-        _anchor_feet,
-        _leg_model,
-        _placed_configuration,
-    )
+    from hil.experiments.walking import WalkingKinematics, _anchor_feet
 
     ordered = _paper_order(runs)
-    model = _leg_model()
     pattern = experiment.pattern
     anchors = _anchor_feet(pattern)
     times = _frame_times(experiment)
     figure = Figure(figsize=(1.5 * N_FRAMES + 1.0, 2.3 * len(ordered) + 2.6), layout="constrained")
     grid = figure.add_gridspec(len(ordered) + 1, N_FRAMES, height_ratios=[1] * len(ordered) + [1.1])
-    half_length = model.sole_boxes[0].size_m[0] / 2.0
     zmp_ax = figure.add_subplot(grid[len(ordered), :])
     _draw_feet(zmp_ax, experiment)
     zmp_ax.plot(pattern.time_s, pattern.zmp_reference_m[:, 1], "k--", lw=1.0, label="desired")
@@ -188,39 +227,7 @@ def step_sequence_figure(
         zmp_ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label=entry.label, **style)
         for column, time_s in enumerate(times):
             ax = figure.add_subplot(grid[row, column])
-            for box in experiment.world.floor_objects:
-                ax.add_patch(
-                    Rectangle(
-                        (box.centre_m[0] - box.size_m[0] / 2, 0.0),
-                        box.size_m[0],
-                        box.height_m,
-                        color="0.5",
-                    )
-                )
-            ax.axhline(0.0, color="k", lw=0.8)
-            rows = np.flatnonzero(np.abs(kinematics.time_s - time_s) < 0.5 * kinematics.period_s)
-            if rows.size and np.isfinite(kinematics.links_rad[rows[0]]).all():
-                tick = min(pattern.n_ticks - 1, int(round(time_s / pattern.dt_s)))
-                _placed_configuration(
-                    model, kinematics.links_rad[rows[0]], int(anchors[tick]), pattern, tick
-                )
-                for side in (1, 0):  # the left leg (nearer the viewer on the left) on top
-                    points = _leg_points(model, side)
-                    ax.plot(points[:, 0], points[:, 2], "-o", color=LEG_COLOURS[side], ms=2, lw=1.5)
-                    sole = points[-1]
-                    ax.plot(
-                        [sole[0] - half_length, sole[0] + half_length],
-                        [sole[2], sole[2]],
-                        color=LEG_COLOURS[side],
-                        lw=2.5,
-                    )
-            else:
-                ax.text(0.5, 0.5, "stopped", transform=ax.transAxes, ha="center", fontsize=7)
-            ax.set_xlim(0.05, 0.95)
-            ax.set_ylim(-0.03, 0.95)
-            ax.set_aspect("equal")
-            ax.set_xticks([])
-            ax.set_yticks([])
+            _draw_frame(ax, experiment, kinematics, float(time_s), anchors)
             if row == 0:
                 ax.set_title(f"{time_s:.2f} s", fontsize=7)
             if column == 0:

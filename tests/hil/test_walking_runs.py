@@ -1,4 +1,4 @@
-"""DYROS-JET's first weight shift of the slow walk, on the product's loop (in-process emulated legs).
+"""DYROS-JET's first weight shift of the slow walk, on the product's loop (in-process legs).
 
 Two independent sensor chains must tell the same story: the ZMP from the feet's force/torque
 sensors and the centre of mass from the link encoders through the robot model. In the slow
