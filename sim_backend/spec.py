@@ -21,6 +21,29 @@ ROBOTS = ("testbed", "dyros-jet")
 
 
 @dataclass(frozen=True)
+class FloorBox:
+    """A rigid box lying on the floor (an object the robot may step on): the centre of its
+    footprint on the ground (x, y) [m] and its full size (x, y, height) [m], axis-aligned."""
+
+    centre_m: tuple[float, float]
+    size_m: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        centre = tuple(float(v) for v in self.centre_m)
+        size = tuple(float(v) for v in self.size_m)
+        if len(centre) != 2 or not all(math.isfinite(v) for v in centre):
+            raise ValueError(f"a floor box's centre_m must be 2 finite numbers, got {centre}")
+        if len(size) != 3 or not all(math.isfinite(v) and v > 0 for v in size):
+            raise ValueError(f"a floor box's size_m must be 3 finite sizes > 0, got {size}")
+        object.__setattr__(self, "centre_m", centre)
+        object.__setattr__(self, "size_m", size)
+
+    @property
+    def height_m(self) -> float:
+        return self.size_m[2]
+
+
+@dataclass(frozen=True)
 class HumanoidSpec:
     """What the emulator needs beyond the buses to build the humanoid.
 
@@ -28,6 +51,7 @@ class HumanoidSpec:
     ft_sensor_node_ids: the left and right foot's force/torque node IDs (0: none).
     initial_leg_angles_rad: the posture the robot is placed in, standing, at power-on.
     truth: RobotTruthParams overrides (plain values; the H54 servo comes from the spec's servo).
+    floor_boxes: rigid boxes on the floor (objects the robot may step on), none by default.
     """
 
     urdf_text: str
@@ -35,6 +59,7 @@ class HumanoidSpec:
     initial_leg_angles_rad: tuple[float, ...]
     support_feet: tuple[int, ...] = (0, 1)
     truth: Mapping[str, Any] = field(default_factory=dict)
+    floor_boxes: tuple[FloorBox, ...] = ()
 
 
 @dataclass(frozen=True)

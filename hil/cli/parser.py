@@ -8,6 +8,7 @@ from pathlib import Path
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
 from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
+from hil.session.comparison import NAMED_COMPARISONS
 
 BENCH_TARGETS = ("bus", "loop", "soak", "log", "sweep")
 
@@ -43,8 +44,9 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     run.add_argument(
         "experiment",
         nargs="?",
-        choices=sorted(EXPERIMENTS),
-        help="the experiment to run; omit for the full comparison",
+        choices=sorted([*EXPERIMENTS, *NAMED_COMPARISONS]),
+        help="the experiment to run; omit for the full comparison; `walking`: the walking "
+        "comparison on DYROS-JET",
     )
     run.add_argument(
         "--controller",

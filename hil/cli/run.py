@@ -8,12 +8,13 @@ import sys
 
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
 from hil.cli.exit_codes import ExitCode
-from hil.config import Config, ConfigError
+from hil.config import Config, ConfigError, robot_of
 from hil.experiments import Experiment, get_experiment
 from hil.loop import StopFlag
 from hil.output.channels import MessageSink
 from hil.safety import ReferenceOutsideLimits
 from hil.session import Session, SessionError, Setup, run_comparison
+from hil.session.comparison import NAMED_COMPARISONS
 from hil.vocabulary import ControllerChoice, ControllerKind
 
 _SINGLE_RUN_OPTIONS = (
@@ -133,8 +134,22 @@ def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) ->
     return ControllerChoice(ControllerKind.PID)
 
 
+def _named_comparison(args: argparse.Namespace) -> str | None:
+    """`hil run walking`: a named comparison on its robot's built-in configuration; from here on
+    the arguments read as the comparison's (no experiment)."""
+    if args.experiment not in NAMED_COMPARISONS:
+        return None
+    named, args.experiment = args.experiment, None
+    if args.config is None and args.robot is None:
+        args.robot = NAMED_COMPARISONS[named]
+    return named
+
+
 def cmd_run(args: argparse.Namespace) -> int:
+    named = _named_comparison(args)
     config = _configured(args)
+    if named is not None and robot_of(config) != NAMED_COMPARISONS[named]:
+        raise ConfigError(f"`hil run {named}` is for the robot {NAMED_COMPARISONS[named]!r}")
     faults, overruns = parse_injections(args.inject)
     embedded = (args.config is None or args.emulate) and not (args.attach and args.config is None)
     _check_combinations(args, embedded, faults)
@@ -142,7 +157,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
     sinks = _live(args)
     try:
-        return _run(args, config, setup, faults, overruns, sinks)
+        return _run(args, config, setup, faults, overruns, sinks, named)
     finally:
         for sink in sinks:
             sink.close()
@@ -155,6 +170,7 @@ def _run(
     faults: tuple,
     overruns: tuple,
     sinks: tuple[MessageSink, ...],
+    named: str | None = None,
 ) -> int:
     session = Session(
         config,
@@ -179,6 +195,7 @@ def _run(
                 overruns=overruns,
                 current_guard=args.current_guard == "on",
                 stop=stop,
+                named=named,
             )
             return ExitCode.OK if outcome.incomplete is None else ExitCode.FAILED
         experiment = get_experiment(args.experiment)

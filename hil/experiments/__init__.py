@@ -7,6 +7,9 @@
     stand         DYROS-JET's legs hold the walking-ready posture (double support)
     push          the same, pushed at the pelvis
     identify      a chirp on the goal with the link free, open loop: the log `hil identify` fits
+    walk-slow     DYROS-JET walks, 0.8 s single / 3.2 s double support (Fig. 7(a))
+    walk-dynamic  the same at 0.8 s / 0.3 s (Fig. 7(b))
+    step-on-object  the dynamic walk over a box the plan does not know (Fig. 8)
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
 name that does not exist.
@@ -17,12 +20,27 @@ from hil.experiments.contact import CONTACT, CONTACT_LONG
 from hil.experiments.humanoid import PUSH, STAND
 from hil.experiments.identify import IDENTIFY, IdentifyExperiment
 from hil.experiments.impact import IMPACT, IMPACT_LONG
+from hil.experiments.walking import STEP_ON_OBJECT, WALK_DYNAMIC, WALK_SLOW
 
 EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e for e in (CONTACT, IMPACT, CONTACT_LONG, IMPACT_LONG, IDENTIFY, STAND, PUSH)
+    e.name: e
+    for e in (
+        CONTACT,
+        IMPACT,
+        CONTACT_LONG,
+        IMPACT_LONG,
+        IDENTIFY,
+        STAND,
+        PUSH,
+        WALK_SLOW,
+        WALK_DYNAMIC,
+        STEP_ON_OBJECT,
+    )
 }
 # Which robot each experiment is for (`hil run NAME` picks the robot's built-in configuration).
-ROBOT_OF_EXPERIMENT: dict[str, str] = {"stand": "dyros-jet", "push": "dyros-jet"}
+ROBOT_OF_EXPERIMENT: dict[str, str] = {
+    name: "dyros-jet" for name in ("stand", "push", "walk-slow", "walk-dynamic", "step-on-object")
+}
 
 
 def robot_of_experiment(name: str | None) -> str:
@@ -50,6 +68,9 @@ __all__ = [
     "PUSH",
     "ROBOT_OF_EXPERIMENT",
     "STAND",
+    "STEP_ON_OBJECT",
+    "WALK_DYNAMIC",
+    "WALK_SLOW",
     "Experiment",
     "IdentifyExperiment",
     "Obstacle",

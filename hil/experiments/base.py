@@ -84,12 +84,27 @@ class PelvisPush:
 
 
 @dataclass(frozen=True)
+class FloorObject:
+    """A rigid box lying on the floor under the humanoid's path (the walking plan does not know
+    it): the centre of its footprint (x, y) [m] in the plan's frame (the frame the robot starts
+    in: the middle of its soles at the origin) and its full size (x, y, height) [m]."""
+
+    centre_m: tuple[float, float]
+    size_m: tuple[float, float, float]
+
+    @property
+    def height_m(self) -> float:
+        return self.size_m[2]
+
+
+@dataclass(frozen=True)
 class World:
     """What the world does during the experiment (experiment time, from its start)."""
 
     pushes: tuple[Push, ...] = ()
     obstacle: Obstacle | None = None
     pelvis_pushes: tuple[PelvisPush, ...] = ()
+    floor_objects: tuple[FloorObject, ...] = ()
 
 
 class Experiment(abc.ABC):

@@ -11,6 +11,9 @@ The plan (`comparison_plan`):
   equilibrium behind the paper's "steady-state error".
 On DYROS-JET (`--robot dyros-jet`): stand and push, each with pid, gc, gc+lqr and gc+lqr+dob
 (the configuration's Kdist: the lab's stance 0.2), Sec. IV-C.
+`hil run walking` (`walking_plan`): walk-slow, walk-dynamic and step-on-object, each with the
+same four controllers (Kdist by phase: the configuration's on the stance leg, 1.0 on the landing
+leg), Sec. IV-C, Figs. 7 and 8.
 A run ending in a safety stop is a result of the comparison; one that did not run its course
 (interrupted, refused at its start, a lost bus) makes the comparison incomplete, and Ctrl-C
 stops the whole plan.
@@ -33,6 +36,9 @@ from hil.experiments import (
     IMPACT_LONG,
     PUSH,
     STAND,
+    STEP_ON_OBJECT,
+    WALK_DYNAMIC,
+    WALK_SLOW,
     Experiment,
 )
 from hil.loop import StopFlag
@@ -52,6 +58,8 @@ COMPARISON_CHOICES: tuple[ControllerChoice, ...] = (
     ControllerChoice(ControllerKind.GC_LQR_DOB, 0.5),
     ControllerChoice(ControllerKind.GC_LQR_DOB, 1.0),
 )
+# Comparisons `hil run NAME` runs by name, and the robot each is for.
+NAMED_COMPARISONS: dict[str, str] = {"walking": "dyros-jet"}
 OTHER_READING_KDIST = 1.0
 BOUNDED_READING = "accumulated-integral"
 
@@ -72,6 +80,17 @@ def humanoid_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
         ControllerChoice(ControllerKind.GC_LQR_DOB, kdist),
     )
     return [(experiment, choice) for experiment in (STAND, PUSH) for choice in choices]
+
+
+def walking_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
+    """DYROS-JET walking slowly, dynamically and onto an object, with each of the four
+    controllers (the same as `humanoid_plan`'s)."""
+    choices = [choice for _, choice in humanoid_plan(kdist)[:4]]
+    return [
+        (experiment, choice)
+        for experiment in (WALK_SLOW, WALK_DYNAMIC, STEP_ON_OBJECT)
+        for choice in choices
+    ]
 
 
 def comparison_plan(
@@ -100,6 +119,7 @@ def run_comparison(
     current_guard: bool = False,
     long_runs: bool = True,
     stop: StopFlag | None = None,
+    named: str | None = None,
 ) -> ComparisonOutcome:
     """Run the plan, write the report, print its table; see the module docstring.
 
@@ -109,8 +129,12 @@ def run_comparison(
     base = session.config.changed("safety", current_guard=current_guard)
     humanoid = robot_of(base) == "dyros-jet"
     name = "humanoid-comparison" if humanoid else "comparison"
+    if named is not None:
+        name = f"{named}-comparison"
     root = unique_dir(session.out_root / f"{timestamp()}-{name}")
-    if humanoid:
+    if named == "walking":
+        plan = walking_plan(base.controller.kdist)
+    elif humanoid:
         plan = humanoid_plan(base.controller.kdist)
     else:
         plan = comparison_plan(base.controller.composition, long_runs=long_runs)
@@ -126,7 +150,12 @@ def run_comparison(
         bar.close()
         session.progress = None
     report = write_comparison_report(
-        root, entries, session.description, time.perf_counter() - started, humanoid=humanoid
+        root,
+        entries,
+        session.description,
+        time.perf_counter() - started,
+        humanoid=humanoid,
+        walking=named == "walking",
     )
     print(report.table_text)
     print(f"report: {report.markdown_path}")
@@ -185,6 +214,7 @@ def write_comparison_report(
     wall_time_s: float,
     *,
     humanoid: bool = False,
+    walking: bool = False,
 ) -> Report:
     """The report of the comparison (figures, relations, tables) for these runs."""
     relations = []
@@ -212,10 +242,15 @@ def write_comparison_report(
             continue
         if path is not None:
             figures.append(path)
-    content = ReportContent(
-        title="DYROS-JET standing and pushed: Kim et al., ICRA 2018, Sec. IV-C"
+    title = (
+        "DYROS-JET standing and pushed: Kim et al., ICRA 2018, Sec. IV-C"
         if humanoid
-        else "Testbed comparison: Kim et al., ICRA 2018, Figs. 5 and 6",
+        else "Testbed comparison: Kim et al., ICRA 2018, Figs. 5 and 6"
+    )
+    if walking:
+        title = "DYROS-JET walking: Kim et al., ICRA 2018, Sec. IV-C, Figs. 7 and 8"
+    content = ReportContent(
+        title=title,
         claims_source="Kim et al., ICRA 2018, Sec. III-A, IV-C"
         if humanoid
         else "Kim et al., ICRA 2018, Sec. IV-B",

@@ -29,7 +29,13 @@ from hil.wiring.hardware import encoder_counts_per_rev
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import FaultEvent, PelvisPushEvent, PushEvent, Scenario
 from sim_backend.servo import H54ServoParams
-from sim_backend.spec import EmulatedJointSpec, EmulatorSpec, HumanoidSpec, SensorNoise
+from sim_backend.spec import (
+    EmulatedJointSpec,
+    EmulatorSpec,
+    FloorBox,
+    HumanoidSpec,
+    SensorNoise,
+)
 
 STARTUP_TIMEOUT_S = 30.0
 
@@ -132,16 +138,19 @@ def emulator_spec(
             reboot_time_s=config.emulator.reboot_time_s,
             sensor_noise=noise,
             robot="testbed" if config.model.robot == "single_link" else config.model.robot,
-            humanoid=_humanoid(config, start),
+            humanoid=_humanoid(config, start, experiment),
             usb_latency_timer_s=_usb_latency_ms(config) * 1e-3,
         )
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
 
 
-def _humanoid(config: Config, start: np.ndarray | None) -> HumanoidSpec | None:
+def _humanoid(
+    config: Config, start: np.ndarray | None, experiment: Experiment | None = None
+) -> HumanoidSpec | None:
     """The humanoid's part of the spec: its description, foot sensors, the posture it stands in
-    at power-on (the experiment's first reference; else the walking-ready posture)."""
+    at power-on (the experiment's first reference; else the walking-ready posture), and the
+    objects on the floor of the experiment's world."""
     if config.model.robot != "dyros-jet":
         return None
     from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD
@@ -153,6 +162,10 @@ def _humanoid(config: Config, start: np.ndarray | None) -> HumanoidSpec | None:
         ft_sensor_node_ids=(node_ids.get("left_foot", 0), node_ids.get("right_foot", 0)),
         initial_leg_angles_rad=posture,
         truth=dict(config.emulator.plant),
+        floor_boxes=tuple(
+            FloorBox(tuple(o.centre_m), tuple(o.size_m))
+            for o in (experiment.world.floor_objects if experiment is not None else ())
+        ),
     )
 
 
@@ -190,6 +203,7 @@ def spec_from_json(text: str) -> EmulatorSpec:
             initial_leg_angles_rad=tuple(humanoid["initial_leg_angles_rad"]),
             support_feet=tuple(humanoid["support_feet"]),
             truth=humanoid["truth"],
+            floor_boxes=tuple(FloorBox(**box) for box in humanoid.get("floor_boxes", ())),
         )
         if humanoid
         else None,

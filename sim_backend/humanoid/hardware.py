@@ -56,6 +56,7 @@ class EmulatedHumanoid:
                 Mounting(joint.motor_direction, joint.motor_offset_rad) for joint in spec.joints
             ],
             rng=rng(spec.seed, 1000),
+            floor_boxes=humanoid.floor_boxes,
         )
         robot.pushes = [
             PelvisPush(p.start_s, p.duration_s, tuple(p.force_n))

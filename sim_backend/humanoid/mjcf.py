@@ -22,7 +22,8 @@ massless body "<link>_ft" welded to the link at the link's origin (the ankle axi
 lab's MuJoCo model puts its foot F/T sensor site), with a site "<link>_ft" and MuJoCo `force`
 and `torque` sensors on it: they read the wrench between that body and the foot link, i.e.
 the ground's wrench on the robot carried to the ankle (the massless body has no weight of its
-own to add). The floor is the plane z = 0; only soles and floor collide.
+own to add). The floor is the plane z = 0, with any `floor_boxes` (objects to step on: rigid,
+fixed to the world, the floor's contact figures); only soles, floor and boxes collide.
 """
 
 from __future__ import annotations
@@ -34,12 +35,14 @@ import numpy as np
 
 from sim_backend.humanoid.description import Joint, Link, RobotDescription
 from sim_backend.humanoid.params import LEG_JOINT_NAMES, RobotTruthParams
+from sim_backend.spec import FloorBox
 
 ROTOR_MASS_KG = 1e-4
 ROTOR_INERTIA_KG_M2 = 1e-9
 MOTOR_SUFFIX = "_motor"
 ROTOR_SUFFIX = "_rotor"
 FT_SUFFIX = "_ft"
+FLOOR_BOX_PREFIX = "floor_box_"
 
 
 def _num(value: float) -> str:
@@ -193,9 +196,11 @@ def build_mjcf(
     *,
     rigid: bool = False,
     velocity_gains_nms_per_rad: Sequence[float] | None = None,
+    floor_boxes: Sequence[FloorBox] = (),
 ) -> str:
     """The MJCF text (see the module docstring). velocity_gains: the servos' kv per leg joint
-    (default: each joint's H54ServoParams.velocity_gain_nms_per_rad)."""
+    (default: each joint's H54ServoParams.velocity_gain_nms_per_rad); floor_boxes: objects on
+    the floor, geoms "floor_box_<i>"."""
     if velocity_gains_nms_per_rad is None:
         velocity_gains_nms_per_rad = [
             params.servo_params(i).velocity_gain_nms_per_rad for i in range(len(LEG_JOINT_NAMES))
@@ -221,6 +226,16 @@ def build_mjcf(
     actuators = "\n    ".join(writer.actuators)
     sensors = "\n    ".join(writer.sensors)
     c = params.contact
+    contact = (
+        f'contype="1" conaffinity="1" condim="3" friction="{_num(c.friction)} 0.005 0.0001" '
+        f'solref="{_num(c.time_constant_s)} {_num(c.damping_ratio)}"'
+    )
+    boxes = "".join(
+        f'\n    <geom name="{FLOOR_BOX_PREFIX}{i}" type="box" '
+        f'pos="{_vec((*box.centre_m, box.height_m / 2))}" '
+        f'size="{_vec(np.asarray(box.size_m) / 2)}" {contact}/>'
+        for i, box in enumerate(floor_boxes)
+    )
     return f"""<mujoco model="{description.name}">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
   <option timestep="{_num(params.physics_timestep_s)}" integrator="implicitfast"
@@ -232,7 +247,7 @@ def build_mjcf(
   <worldbody>
     <geom name="floor" type="plane" size="0 0 0.05" contype="1" conaffinity="1" condim="3"
           friction="{_num(c.friction)} 0.005 0.0001"
-          solref="{_num(c.time_constant_s)} {_num(c.damping_ratio)}"/>
+          solref="{_num(c.time_constant_s)} {_num(c.damping_ratio)}"/>{boxes}
 {body}
   </worldbody>
   <actuator>

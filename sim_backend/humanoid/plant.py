@@ -29,6 +29,7 @@ from sim_backend.humanoid.params import (
     PELVIS_LINK_NAME,
     RobotTruthParams,
 )
+from sim_backend.spec import FloorBox
 
 
 class HumanoidPlant:
@@ -40,11 +41,16 @@ class HumanoidPlant:
         params: RobotTruthParams | None = None,
         *,
         velocity_gains_nms_per_rad: Sequence[float] | None = None,
+        floor_boxes: Sequence[FloorBox] = (),
     ) -> None:
         self.params = params or RobotTruthParams()
         self.description = parse_urdf(urdf_text)
+        self.floor_boxes = tuple(floor_boxes)
         self.mjcf = build_mjcf(
-            self.description, self.params, velocity_gains_nms_per_rad=velocity_gains_nms_per_rad
+            self.description,
+            self.params,
+            velocity_gains_nms_per_rad=velocity_gains_nms_per_rad,
+            floor_boxes=self.floor_boxes,
         )
         model = mujoco.MjModel.from_xml_string(self.mjcf)
         self.model = model
@@ -195,6 +201,18 @@ class HumanoidPlant:
             self.data.contact[i].geom1 in geoms or self.data.contact[i].geom2 in geoms
             for i in range(self.data.ncon)
         )
+
+    def sole_contacts(self, side: int) -> list[tuple[str, np.ndarray]]:
+        """Where sole `side` touches the world: (the other geom's name, the contact point [m])
+        for each of MuJoCo's active contacts of that sole (e.g. "floor", "floor_box_0")."""
+        geoms = self._sole_geoms[side]
+        found = []
+        for i in range(self.data.ncon):
+            contact = self.data.contact[i]
+            if contact.geom1 in geoms or contact.geom2 in geoms:
+                other = contact.geom2 if contact.geom1 in geoms else contact.geom1
+                found.append((self.model.geom(other).name, contact.pos.copy()))
+        return found
 
     # --- inputs -------------------------------------------------------------------------------
     def set_servo(self, joint: int, velocity_command_rad_s: float, torque_limit_nm: float) -> None:

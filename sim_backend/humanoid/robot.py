@@ -28,6 +28,7 @@ import numpy as np
 from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams
 from sim_backend.humanoid.plant import HumanoidPlant
 from sim_backend.servo import ControlTable, H54Firmware
+from sim_backend.spec import FloorBox
 from sim_backend.testbed import Mounting
 
 
@@ -58,6 +59,7 @@ class EmulatedRobot:
         these soles flat on the floor (plant.place_standing); each device's goal is where it
         stands, as a powered-up servo's.
     motor_mountings: per joint, how the actuator is mounted (default: direction +1, offset 0).
+    floor_boxes: objects lying on the floor (none by default).
     """
 
     def __init__(
@@ -70,6 +72,7 @@ class EmulatedRobot:
         support_feet: Sequence[int] = (0, 1),
         motor_mountings: Sequence[Mounting] | None = None,
         rng: np.random.Generator | None = None,
+        floor_boxes: Sequence[FloorBox] = (),
     ) -> None:
         if len(tables) != N_LEG_JOINTS:
             raise ValueError(f"an emulated robot needs {N_LEG_JOINTS} control tables")
@@ -82,6 +85,7 @@ class EmulatedRobot:
             urdf_text,
             self.truth,
             velocity_gains_nms_per_rad=[f.velocity_gain() for f in self.firmware],
+            floor_boxes=floor_boxes,
         )
         self.mountings = list(motor_mountings or [Mounting()] * N_LEG_JOINTS)
         if len(self.mountings) != N_LEG_JOINTS:
