@@ -51,6 +51,11 @@ class EmulatedHardware(Protocol):
 
     def advance(self, duration_s: float) -> int: ...
 
+    # True: the robot hangs in its gantry (the plant does not move) until the host starts the
+    # run (its first SYNC), as a humanoid is held until its joints hold it; False: the plant
+    # follows the wall clock from power-on (the testbed's link hangs on its spring meanwhile).
+    held_until_started: bool
+
 
 def sensor_nodes(hardware: EmulatedHardware) -> list[object]:
     """Every CAN node of the hardware (encoders, force sensor, force/torque sensors)."""
@@ -109,6 +114,8 @@ def with_obstacle(
 
 class EmulatedTestbed:
     """The 1-DoF testbed (or n copies of it): a plant per joint behind its H54 firmware."""
+
+    held_until_started = False
 
     def __init__(
         self,

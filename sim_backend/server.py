@@ -195,6 +195,9 @@ class Emulator:
     def _follow_wall_clock(self) -> float:
         """Step the plant up to the wall clock; returns when the next step is due."""
         dt = self.testbed.physics_timestep_s
+        if self.sync_count == 0 and self.hardware.held_until_started:
+            self._wall_origin = time.monotonic() - self.testbed.time_s  # still in its gantry
+            return self._wall_origin + self.testbed.time_s + dt
         elapsed = time.monotonic() - self._wall_origin
         behind = elapsed - self.testbed.time_s
         if behind > 0.1:  # we were stopped (debugger, suspended): do not replay the gap

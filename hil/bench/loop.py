@@ -341,6 +341,8 @@ def run_bench_loop(
     joint_counts: Sequence[int] = JOINT_COUNTS,
     say: Callable[[str], None] = lambda _text: None,
 ) -> dict[str, Any]:
+    # the wire budget of the configuration as given (the bench widens only its own timeout)
+    budget = tick_budget(bus_config(config, Connection.from_config(config)), config.loop.period_s)
     config = with_bench_reply_timeout(config)
     sizes = (
         "the robot's joints" if robot_of(config) == "dyros-jet" else f"{len(joint_counts)} sizes"
@@ -360,7 +362,6 @@ def run_bench_loop(
             wall = bench_wall_clock(config, ticks, Path(tmp) / "wall", say)
         except BenchError as exc:  # the other figures stand; say why this one is missing
             wall = {"error": str(exc), "rate_hz": config.loop.rate_hz}
-    budget = tick_budget(bus_config(config, Connection.from_config(config)), config.loop.period_s)
     return {
         "bench": "loop",
         "machine": machine(),

@@ -196,6 +196,8 @@ def spec_from_json(text: str) -> EmulatorSpec:
         reboot_time_s=raw["reboot_time_s"],
         heartbeat_ms=raw["heartbeat_ms"],
         sensor_noise=SensorNoise(**raw["sensor_noise"]),
+        usb_latency_timer_s=raw["usb_latency_timer_s"],
+        can_bootup_delay_s=raw["can_bootup_delay_s"],
         robot=raw["robot"],
         humanoid=HumanoidSpec(
             urdf_text=humanoid["urdf_text"],

@@ -16,6 +16,8 @@ from sim_backend.testbed import Mounting
 class EmulatedHumanoid:
     """See the module docstring; built from an `EmulatorSpec` whose robot is "dyros-jet"."""
 
+    held_until_started = True  # in its gantry until the run starts (realtime clock)
+
     def __init__(
         self,
         robot: EmulatedRobot,
