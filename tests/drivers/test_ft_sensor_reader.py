@@ -8,23 +8,21 @@ ticks are lock-step: send_sync() -> the test pumps the nodes -> collect().
 from __future__ import annotations
 
 import math
-import uuid
 from collections.abc import Iterator
 
-import can
 import numpy as np
 import pytest
 
-from drivers.canbus import CanDeviceError, LinkEncoderConfig, LinkEncoderReader, LinkReading
+from drivers.canbus import CanDeviceError, LinkEncoderConfig, LinkReading
 from drivers.canbus.config import ForceTorqueSensorConfig
 from drivers.canbus.units import wrench_from_counts
-from sim_backend.canbus import CanSegment, LinkEncoderNode, NodeRunner
+from sim_backend.canbus import LinkEncoderNode
 from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
-from sim_backend.canbus.testing import serve_in_background
+from tests.support import can_rig
+from tests.support.can_rig import TICK_S
 
 pytestmark = pytest.mark.timeout(30)
 
-TICK_S = 0.005
 SI_PER_COUNT = np.array([0.1, 0.1, 0.1, 0.01, 0.01, 0.01])  # the emulated sensor's EDS
 
 
@@ -39,34 +37,19 @@ class Wrench:
         return self.force.copy(), self.torque.copy()
 
 
-class Rig:
+class Rig(can_rig.Rig):
+    """The shared rig with the force/torque sensors on the reader; `tick(pump=False)` leaves the
+    nodes unpumped (nothing answers the SYNC)."""
+
     def __init__(self, nodes: list, encoders: list, sensors: list) -> None:
-        channel = f"test-ft-{uuid.uuid4()}"
-        self.now_s = 0.0
-        self.node_bus = can.Bus(interface="virtual", channel=channel)
-        self.runner = NodeRunner(self.node_bus, CanSegment(nodes))
-        self.reader = LinkEncoderReader(
-            can.Bus(interface="virtual", channel=channel),
-            encoders,
-            force_torque_sensors=sensors,
-            clock=lambda: self.now_s,
-            bus_description=f"virtual {channel}",
-        )
+        super().__init__(nodes, encoders, force_torque_sensors=sensors)
 
-    def open(self) -> None:
-        with serve_in_background(self.runner, lambda: self.now_s):
-            self.reader.open()
-
-    def tick(self, pump: bool = True) -> LinkReading:
+    def tick(self, pump: bool = True) -> LinkReading:  # type: ignore[override]
         self.now_s += TICK_S
         self.reader.send_sync()
         if pump:
             self.runner.pump(self.now_s)
         return self.reader.collect(0.004 if pump else 0.0)
-
-    def close(self) -> None:
-        self.reader.close()
-        self.node_bus.shutdown()
 
 
 @pytest.fixture

@@ -19,7 +19,7 @@ import pytest
 
 from drivers.canbus import LinkEncoderConfig
 from drivers.dynamixel import DynamixelChainConfig, DynamixelJointConfig
-from drivers.dynamixel_can_bus import DynamixelCanBus, DynamixelCanBusConfig
+from drivers.dynamixel_can_bus import CanChannelConfig, DynamixelCanBus, DynamixelCanBusConfig
 from sim_backend.emulator_process import emulator_process
 from sim_backend.plant import TestbedPlantParams as PlantParams
 from sim_backend.server import EmulatedJointSpec, EmulatorSpec
@@ -36,24 +36,34 @@ COUNT_RAD = 2 * math.pi / 983_040  # RLC2IC on MR075 (RLS data sheets)
 def bus_for(endpoints: dict) -> DynamixelCanBus:
     config = DynamixelCanBusConfig(
         joint_names=("joint",),
-        dynamixel=DynamixelChainConfig(
-            port=endpoints["dynamixel_port"],
-            baudrate=endpoints["baudrate"],
-            joints=(
-                DynamixelJointConfig(
-                    dxl_id=1,
-                    direction=MOTOR_DIRECTION,
-                    offset_rad=MOTOR_OFFSET_RAD,
-                    min_position_rad=-1.5,
-                    max_position_rad=1.5,
+        chains=(
+            DynamixelChainConfig(
+                port=endpoints["dynamixel_port"],
+                baudrate=endpoints["baudrate"],
+                joints=(
+                    DynamixelJointConfig(
+                        dxl_id=1,
+                        name="joint",
+                        direction=MOTOR_DIRECTION,
+                        offset_rad=MOTOR_OFFSET_RAD,
+                        min_position_rad=-1.5,
+                        max_position_rad=1.5,
+                    ),
+                ),
+                latency_timer_ms=50.0,  # lock-step: the emulator answers every request
+            ),
+        ),
+        can_channels=(
+            CanChannelConfig(
+                "can0",
+                endpoints["can"],
+                encoders=(
+                    LinkEncoderConfig(
+                        5, direction=ENCODER_DIRECTION, offset_rad=ENCODER_OFFSET_RAD, name="joint"
+                    ),
                 ),
             ),
-            latency_timer_ms=50.0,  # lock-step: the emulator answers every request
         ),
-        encoders=(
-            LinkEncoderConfig(5, direction=ENCODER_DIRECTION, offset_rad=ENCODER_OFFSET_RAD),
-        ),
-        can_bus_kwargs=endpoints["can"],
         link_timeout_s=0.2,
     )
     return DynamixelCanBus(config)

@@ -21,75 +21,21 @@ from drivers.canbus import (
     ForceSensorConfig,
     LinkEncoderConfig,
     LinkEncoderReader,
-    LinkReading,
     force_n_from_counts,
     link_angle_rad_from_counts,
 )
-from sim_backend.canbus import CanSegment, ForceSensorNode, LinkEncoderNode, NodeRunner
+from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
 from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
-from sim_backend.canbus.testing import serve_in_background
+from tests.support.can_rig import TICK_S, Rig
 from tests.support.load_conditions import timing_is_unreliable
 
 pytestmark = pytest.mark.timeout(30)
 
 N = 983_040
-TICK_S = 0.005
 
 
 def counts_of(angle_rad: float, counts_per_rev: int = N) -> int:
     return math.floor(angle_rad * counts_per_rev / (2.0 * math.pi) + 0.5)
-
-
-class Rig:
-    """Nodes and a reader on one virtual channel, sharing a simulated clock."""
-
-    def __init__(self, nodes: list, encoders: list[LinkEncoderConfig], **reader_kwargs) -> None:
-        channel = f"test-can-driver-{uuid.uuid4()}"
-        self.now_s = 0.0
-        self.nodes = nodes
-        self.node_bus = can.Bus(interface="virtual", channel=channel)
-        self.runner = NodeRunner(self.node_bus, CanSegment(nodes))
-        # The nodes were powered before the reader came: their power-on boot-up is history
-        # (had it arrived after the reader's NMT reset, it would pass for the reset's answer).
-        self.runner.pump(self.now_s)
-        self.reader = LinkEncoderReader(
-            can.Bus(interface="virtual", channel=channel),
-            encoders,
-            clock=lambda: self.now_s,
-            bus_description=f"virtual {channel}",
-            **reader_kwargs,
-        )
-        self.description = f"virtual {channel}"
-
-    def serve_while(self, action) -> None:
-        """Serve the nodes while `action` blocks (canopen's SDO client); the shared clock runs
-        in real time meanwhile, so that a node booting after an NMT reset gets there."""
-        base_s, started = self.now_s, time.monotonic()
-
-        def running_clock() -> float:
-            self.now_s = max(self.now_s, base_s + time.monotonic() - started)
-            return self.now_s
-
-        with serve_in_background(self.runner, running_clock):
-            action()
-        # Lock-step ticks resume on a fixed grid whatever the real time the action took, so
-        # that sessions stay deterministic: the next multiple of 10 s.
-        self.now_s = 10.0 * (math.floor(base_s / 10.0) + 1)
-        assert self.now_s > base_s + time.monotonic() - started, "serving took over 10 s"
-        self.runner.pump(self.now_s)  # the heartbeats overdue after the jump go out now
-
-    def open(self) -> None:
-        self.serve_while(self.reader.open)
-
-    def tick(self, timeout_s: float = 0.004) -> LinkReading:
-        self.now_s += TICK_S
-        self.reader.send_sync()
-        self.runner.pump(self.now_s)
-        return self.reader.collect(timeout_s)
-
-    def close(self) -> None:
-        self.reader.close()
-        self.node_bus.shutdown()
 
 
 @pytest.fixture

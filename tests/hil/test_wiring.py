@@ -1,4 +1,5 @@
-"""The tick's wire budget, checked by hand (drivers/tick_budget.py)."""
+"""From the configuration to the drivers: the mounting reaches them, the tick's wire budget by hand
+(drivers/tick_budget.py)."""
 
 from __future__ import annotations
 
@@ -34,3 +35,23 @@ def test_dyros_jet_tick_budget_by_hand() -> None:
     assert budget.sequential_s == pytest.approx(1.655e-3 + 1.1267e-3 + 1e-3 + 0.2467e-3, rel=1e-3)
     assert budget.overlapped_s == pytest.approx(1.1267e-3 + 1e-3 + 0.2467e-3, rel=1e-3)
     assert budget.overlapped_s < budget.sequential_s < budget.period_s
+
+
+def test_the_configurations_mounting_reaches_the_drivers() -> None:
+    # a direction hard-wired to +1 between the file and the drivers would pass every run with
+    # the built-in testbed (direction +1, offset 0): set the file's values and read them back
+    config = load_config()
+    joint = config.joints[0].model_copy(
+        update={
+            "encoder_direction": -1,
+            "encoder_offset_rad": 0.3,
+            "motor_direction": -1,
+            "motor_offset_rad": 0.2,
+        }
+    )
+    config = config.replaced(joints=[joint])
+    bus = bus_config(config, Connection.from_config(config))
+    (encoder,) = bus.can_channels[0].encoders
+    (actuator,) = bus.chains[0].joints
+    assert (encoder.direction, encoder.offset_rad) == (-1, 0.3)
+    assert (actuator.direction, actuator.offset_rad) == (-1, 0.2)
