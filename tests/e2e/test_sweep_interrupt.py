@@ -46,8 +46,9 @@ def _ray_processes() -> set[str]:
 
 
 def _new_ray_processes(before: set[str]) -> set[str]:
-    """Ray processes started since `before` still running after a grace period."""
-    deadline = time.monotonic() + 20
+    """Ray processes started since `before` still running after a grace period (Ray's agents
+    notice their raylet's end by polling: measured up to ~30 s on a loaded 2-core machine)."""
+    deadline = time.monotonic() + 60
     while (left := _ray_processes() - before) and time.monotonic() < deadline:
         time.sleep(0.5)
     return left

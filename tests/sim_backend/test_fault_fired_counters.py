@@ -11,7 +11,7 @@ import pytest
 
 from drivers.canbus import LinkEncoderConfig
 from drivers.dynamixel import DynamixelChainConfig, DynamixelJointConfig
-from drivers.dynamixel_can_bus import DynamixelCanBus, DynamixelCanBusConfig
+from drivers.dynamixel_can_bus import CanChannelConfig, DynamixelCanBus, DynamixelCanBusConfig
 from sim_backend.canbus.encoder_node import LinkEncoderNode
 from sim_backend.dynamixel.chain import DynamixelChain
 from sim_backend.dynamixel.device import H54Device
@@ -67,7 +67,7 @@ def test_a_fault_at_nan_or_infinity_is_refused_not_silently_skipped() -> None:
     for text in ("silent_id@nan", "silent_id@inf", "dead_encoder@1+nan", "corrupt_crc@-1"):
         with pytest.raises(ValueError, match="finite"):
             parse_fault(text)
-    with pytest.raises(ValueError, match="noise_counts_rms"):
+    with pytest.raises(ValueError, match="noise must be finite"):
         FaultEvent("noisy_encoder", 0.0, noise_counts_rms=math.nan)
 
 
@@ -87,17 +87,24 @@ def test_the_emulator_reports_which_scenario_faults_fired_and_how_often() -> Non
         bus = DynamixelCanBus(
             DynamixelCanBusConfig(
                 joint_names=("joint",),
-                dynamixel=DynamixelChainConfig(
-                    port=endpoints["dynamixel_port"],
-                    baudrate=endpoints["baudrate"],
-                    joints=(
-                        DynamixelJointConfig(dxl_id=1, min_position_rad=-1, max_position_rad=1),
+                chains=(
+                    DynamixelChainConfig(
+                        port=endpoints["dynamixel_port"],
+                        baudrate=endpoints["baudrate"],
+                        joints=(
+                            DynamixelJointConfig(
+                                dxl_id=1, name="joint", min_position_rad=-1, max_position_rad=1
+                            ),
+                        ),
+                        # generous: the emulator is another process, maybe descheduled a while
+                        latency_timer_ms=FUNCTIONAL_LATENCY_TIMER_MS,
                     ),
-                    # generous: the emulator is another process, maybe descheduled a while
-                    latency_timer_ms=FUNCTIONAL_LATENCY_TIMER_MS,
                 ),
-                encoders=(LinkEncoderConfig(5),),
-                can_bus_kwargs=endpoints["can"],
+                can_channels=(
+                    CanChannelConfig(
+                        "can0", endpoints["can"], encoders=(LinkEncoderConfig(5, name="joint"),)
+                    ),
+                ),
                 link_timeout_s=0.02,
             )
         )
