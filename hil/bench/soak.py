@@ -50,6 +50,9 @@ class SoakKind:
     duration_s: float | None = None  # of the fault; None: one reply / to the end
     notice: str | None = None
     run_after_s: float = 0.4  # how long the run goes on after the fault starts
+    # the bound counts from when the motor has turned half the deflection bound since the
+    # fault (a frozen reading is a fault only while the joint moves: docs/safety.md)
+    after_motion: bool = False
 
 
 def _kinds() -> tuple[SoakKind, ...]:
@@ -62,8 +65,8 @@ def _kinds() -> tuple[SoakKind, ...]:
         SoakKind("corrupt_crc", "bus_error", "torque_off", bus, (0.5, 3.0), duration_s=0.05),
         SoakKind("silent_id", "bus_error", "torque_off", bus, (0.5, 3.0), run_after_s=0.15),
         SoakKind("dead_encoder", "link_stale", "hold", link, (0.5, 3.0)),
-        # frozen while the motor moves (the contact ramp, 1-3 s): 0.03 rad at >= 0.15 rad/s
-        SoakKind("stale_encoder", "link_stale", "hold", lambda c: 40, (1.3, 2.0)),
+        # frozen while the motor moves (the contact ramp, 1-3 s)
+        SoakKind("stale_encoder", "link_stale", "hold", link, (1.3, 2.0), after_motion=True),
         SoakKind(
             "noisy_encoder",
             "link_noisy",
@@ -147,6 +150,18 @@ def _fault_tick(kind: SoakKind, start_s: float, run: Any, period_s: float) -> in
     return math.ceil(start_s / period_s - 1e-9)  # the first tick at or after the start
 
 
+def _ticks_until_moved(run: Any, fault_tick: int, angle_rad: float) -> int:
+    """Ticks from the fault until the motor had turned `angle_rad` from where it was then (a
+    large number when it never did)."""
+    ticks = run.columns["tick"].astype(int)
+    motor = run.columns["motor_angle_rad"]
+    at = np.flatnonzero(ticks >= fault_tick)
+    if not at.size:
+        return 10**9
+    moved = np.flatnonzero(np.abs(motor[at] - motor[at[0]]) > angle_rad)
+    return int(moved[0]) if moved.size else 10**9
+
+
 def _check(
     config: Config, kind: SoakKind, start_s: float, run: Any, torque_on: bool
 ) -> dict[str, Any]:
@@ -169,7 +184,10 @@ def _check(
         )
         reaction = first["tick"] - fault_tick + 1 if right and fault_tick >= 0 else None
         outcome["reaction_ticks"] = reaction
-        outcome["ok"] = reaction is not None and 1 <= reaction <= kind.bound_ticks(config)
+        bound = kind.bound_ticks(config)
+        if kind.after_motion:
+            bound += _ticks_until_moved(run, fault_tick, config.safety.max_deflection_rad / 2)
+        outcome["ok"] = reaction is not None and 1 <= reaction <= bound
     exit_note = summary["exit"][0] if summary["exit"] else "?"
     wanted_off = config.safety.on_exit == "torque_off"
     honest = (exit_note == "torque off") == (not torque_on) if wanted_off else True
