@@ -11,7 +11,6 @@ configuration file, so the host's drivers undo exactly what the emulated mountin
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -20,6 +19,7 @@ import numpy as np
 from sim_backend.plant import TestbedPlant, TestbedPlantParams
 from sim_backend.scenario import PushEvent
 from sim_backend.servo import ControlTable, H54Firmware, H54ServoParams
+from sim_backend.step_clock import StepClock
 
 
 @dataclass(frozen=True)
@@ -133,11 +133,7 @@ class VirtualTestbed:
             raise ValueError("a virtual testbed needs at least one joint")
         self.joints = list(joints)
         self._dt = joints[0].plant.params.physics_timestep_s
-        # Time is counted in whole physics steps: a float summed step by step drifts, and a
-        # fault or push due at exactly t would then start a step late (or early).
-        self.steps = 0
-        self._origin_step: int | None = None
-        self._carry_s = 0.0
+        self.clock = StepClock(self._dt)
 
     @property
     def physics_timestep_s(self) -> float:
@@ -145,27 +141,22 @@ class VirtualTestbed:
 
     @property
     def time_s(self) -> float:
-        return self.steps * self._dt
+        return self.clock.time_s
 
     def start_scenario(self) -> None:
-        if self._origin_step is None:
-            self._origin_step = self.steps
+        self.clock.start_scenario()
 
     @property
     def scenario_time_s(self) -> float | None:
         """Time since the first SYNC on the plant's clock, None before it."""
-        if self._origin_step is None:
-            return None
-        return (self.steps - self._origin_step) * self._dt
+        return self.clock.scenario_time_s
 
     def advance(self, duration_s: float) -> int:
         """Advance by whole physics steps covering duration_s (remainders carry over)."""
-        total = self._carry_s + duration_s
-        steps = int(math.floor(total / self._dt + 1e-9))
-        self._carry_s = total - steps * self._dt
+        steps = self.clock.steps_covering(duration_s)
         for _ in range(steps):
             scenario_time = self.scenario_time_s
             for joint in self.joints:
                 joint.step(scenario_time)
-            self.steps += 1
+            self.clock.steps += 1
         return steps

@@ -158,8 +158,12 @@ def _read_only(
 
 
 def _h54_items() -> tuple[ControlItem, ...]:
+    """The H54's control table, address order: EEPROM (0..560), then RAM (562..892)."""
+    return (*_h54_eeprom_items(), *_h54_ram_items())
+
+
+def _h54_eeprom_items() -> list[ControlItem]:
     eeprom = Area.EEPROM
-    ram = Area.RAM
     items = [
         _read_only(eeprom, "Model Number", 0, 2, MODEL_NUMBER_H54_200_S500_R),
         _read_only(eeprom, "Model Information", 2, 4, 0),
@@ -192,7 +196,12 @@ def _h54_items() -> tuple[ControlItem, ...]:
         )
         for n in range(1, INDIRECT_COUNT + 1)
     ]
-    items += [
+    return items
+
+
+def _h54_ram_items() -> list[ControlItem]:
+    ram = Area.RAM
+    items = [
         _ram("Torque Enable", 562, 1, 0, 0, 1),
         _ram("LED Red", 563, 1, 0, 0, 255),
         _ram("LED Green", 564, 1, 0, 0, 255),
@@ -272,7 +281,7 @@ def _h54_items() -> tuple[ControlItem, ...]:
         _ram("Status Return Level", 891, 1, 2, 0, 2),
         _read_only(ram, "Hardware Error Status", 892, 1, 0),
     ]
-    return tuple(items)
+    return items
 
 
 class ControlTableLayout:

@@ -19,7 +19,6 @@ counts, as on the testbed; the host's configuration undoes it.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -29,6 +28,7 @@ from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams
 from sim_backend.humanoid.plant import HumanoidPlant
 from sim_backend.servo import ControlTable, H54Firmware
 from sim_backend.spec import FloorBox
+from sim_backend.step_clock import StepClock
 from sim_backend.testbed import Mounting
 
 
@@ -98,9 +98,7 @@ class EmulatedRobot:
         self._caps = np.zeros(N_LEG_JOINTS)
         self._gains = np.array([f.velocity_gain() for f in self.firmware])
         self._no_push = np.zeros(3)
-        self.steps = 0  # time in whole physics steps: a float summed step by step drifts
-        self._origin_step: int | None = None
-        self._carry_s = 0.0
+        self.clock = StepClock(self._dt)  # time in whole physics steps
         self.plant.place_standing(initial_leg_angles_rad, support_feet)
         for joint, table in enumerate(self.tables):
             table.set_item("Position P Gain", self.truth.position_gain_registers[joint])
@@ -117,24 +115,19 @@ class EmulatedRobot:
 
     @property
     def time_s(self) -> float:
-        return self.steps * self._dt
+        return self.clock.time_s
 
     def start_scenario(self) -> None:
         """The scenario clock (pushes) starts now (the emulator calls it at the first SYNC)."""
-        if self._origin_step is None:
-            self._origin_step = self.steps
+        self.clock.start_scenario()
 
     @property
     def scenario_time_s(self) -> float | None:
-        if self._origin_step is None:
-            return None
-        return (self.steps - self._origin_step) * self._dt
+        return self.clock.scenario_time_s
 
     def advance(self, duration_s: float) -> int:
         """Advance by whole physics steps covering duration_s (remainders carry over)."""
-        total = self._carry_s + duration_s
-        steps = int(math.floor(total / self._dt + 1e-9))
-        self._carry_s = total - steps * self._dt
+        steps = self.clock.steps_covering(duration_s)
         for _ in range(steps):
             self.step()
         return steps
@@ -169,7 +162,7 @@ class EmulatedRobot:
             push = sum((event.force_at(scenario_time) for event in self.pushes), np.zeros(3))
         plant.set_pelvis_force(push)
         plant.step()
-        self.steps += 1
+        self.clock.steps += 1
         self._report_all()
 
     def on_reboot(self, joint: int) -> None:
