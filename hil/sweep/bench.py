@@ -26,6 +26,7 @@ from typing import Any
 
 from hil.config import Config
 from hil.sweep.engine import import_ray, start_ray
+from hil.sweep.processes import descendants, shutdown_ray_started_here
 from hil.sweep.spec import SweepSpec, Task, parse_spec, plan
 from hil.sweep.task import FAILED, run_task
 
@@ -89,6 +90,7 @@ def _measure(tasks: list[Task], root: Path, repeats: int, say: Callable[[str], N
     ray = import_ray()
     figures: dict[str, Any] = {mode: [0.0, 0.0] for mode in MODES}
     started = time.perf_counter()
+    before = descendants(os.getpid())
     start_ray(2, None)
     try:
         initialised = time.perf_counter()
@@ -107,7 +109,7 @@ def _measure(tasks: list[Task], root: Path, repeats: int, say: Callable[[str], N
                 figures[mode][0] += elapsed
                 figures[mode][1] += inside
     finally:
-        ray.shutdown()
+        shutdown_ray_started_here(ray, before)
     return {"figures": figures, "init_s": initialised - started, "warm_up_s": warmed - initialised}
 
 

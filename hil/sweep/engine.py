@@ -17,6 +17,7 @@ from __future__ import annotations
 import csv
 import json
 import logging
+import os
 import signal
 import threading
 import time
@@ -28,6 +29,7 @@ from typing import Any
 
 from hil.config import Config
 from hil.sweep.maps import write_maps
+from hil.sweep.processes import descendants, shutdown_ray_started_here
 from hil.sweep.relations import PointRelation, RelationFraction, fractions, point_relations
 from hil.sweep.spec import Sampling, SweepSpec, Task, plan, resolved
 from hil.sweep.table import ResultsTable, header
@@ -210,13 +212,14 @@ def run_sweep(
     if pending:
         ray = import_ray()
         started_here = not ray.is_initialized()
+        before = descendants(os.getpid())
         try:
             start_ray(workers, address)
             done, interrupted = execute_on_ray(pending, table, out_dir, ray, say)
             outcome.done_now, outcome.interrupted = done, interrupted
         finally:  # also after Ctrl-C during ray.init: no Ray process left behind
             if started_here and ray.is_initialized():
-                ray.shutdown()
+                shutdown_ray_started_here(ray, before)
     rows = [table.rows[t.run_id] for t in tasks if t.run_id in table]
     outcome.failed = sum(1 for row in rows if row["ending"] == FAILED)
     outcome.wall_time_s = time.perf_counter() - started

@@ -1,0 +1,79 @@
+"""Ending what a sweep's Ray left behind: descendants found through /proc, processes that
+ignore SIGTERM killed, processes there before left alone."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hil.sweep.processes import descendants, end_processes, shutdown_ray_started_here
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+
+# a child that starts a grandchild ignoring SIGTERM (as an agent that missed its raylet's end)
+SPAWNER = (
+    "import signal, subprocess, sys, time\n"
+    "subprocess.Popen([sys.executable, '-c', "
+    "'import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(60)'])\n"
+    "time.sleep(60)\n"
+)
+
+
+def _pids(processes: set[tuple[int, int]]) -> set[int]:
+    return {pid for pid, _ in processes}
+
+
+def _wait_for_descendants(
+    count: int, other: set[tuple[int, int]] | None = None
+) -> set[tuple[int, int]]:
+    """This process's descendants, not counting `other`, once there are `count` of them."""
+    deadline = time.monotonic() + 10
+    while True:
+        found = descendants(os.getpid()) - (other or set())
+        if len(found) >= count or time.monotonic() > deadline:
+            return found
+        time.sleep(0.05)
+
+
+def test_descendants_include_grandchildren_and_end_processes_kills_the_stubborn() -> None:
+    other = descendants(os.getpid())  # whatever earlier tests left running
+    child = subprocess.Popen([sys.executable, "-c", SPAWNER])
+    try:
+        found = _wait_for_descendants(2, other)
+        assert child.pid in _pids(found)
+        assert len(found) == 2  # the child and its grandchild, nothing else
+        left = end_processes(found, grace_s=0.3)
+        assert left == set()
+        child.wait(timeout=5)  # reaped here; the grandchild was reparented and reaped by init
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+
+
+class _FakeRay:
+    shut_down = False
+
+    def shutdown(self) -> None:
+        self.shut_down = True  # a shutdown that leaves its process running
+
+
+def test_shutdown_ends_what_started_after_and_leaves_what_was_there_before() -> None:
+    there_before = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        before = descendants(os.getpid())
+        started = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+        _wait_for_descendants(1, before)
+        ray = _FakeRay()
+        assert shutdown_ray_started_here(ray, before, grace_s=0.2) == set()
+        assert ray.shut_down
+        assert started.wait(timeout=5) != 0  # ended by a signal
+        assert there_before.poll() is None
+    finally:
+        there_before.kill()
+        there_before.wait()
