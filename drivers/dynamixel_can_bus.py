@@ -197,14 +197,30 @@ class DynamixelCanBus(JointBus):
 
     # --- the 200 Hz path -------------------------------------------------------------------
     def read(self) -> JointSample:
+        self.start_read()
+        return self.finish_read()
+
+    def start_read(self) -> None:
+        """SYNC on every CAN channel, then the SYNC_READ on every chain (in that order: the
+        lock-step emulator steps its plant on the SYNC, and answers a read sent after it with
+        the new state)."""
         if len(self.readers) != len(self.config.can_channels):
             raise BusError("read() before open()")
-        sample = JointSample.empty(self.n_joints)
         try:
             for reader in self.readers:
                 reader.send_sync()
-            motors = [chain.read_state() for chain in self.chains]
+            for chain in self.chains:
+                chain.request_state()
+        except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
+            raise BusError(f"the bus failed while reading: {exc}") from exc
+
+    def finish_read(self) -> JointSample:
+        """The link encoders' answers first (they come within a few hundred microseconds of
+        the SYNC), then the Dynamixel replies (held ~1 ms longer by the USB adapter)."""
+        sample = JointSample.empty(self.n_joints)
+        try:
             links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
+            motors = [chain.receive_state() for chain in self.chains]
         except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
             raise BusError(f"the bus failed while reading: {exc}") from exc
         sample.timestamp_s = links[0].sync_time_s

@@ -150,7 +150,8 @@ class JointBus(abc.ABC):
     """A set of n flexible joints: read state, write goal motor angles.
 
     Lifecycle: `open()` checks and configures the devices without enabling torque; `enable()`
-    turns torque on; each tick calls `read()` then `write()`; `disable()` turns torque off;
+    turns torque on; each tick calls `read()` (or `start_read()` ... `finish_read()`) then
+    `write()`; `disable()` turns torque off;
     `close()` releases the ports (it does not change the torque state: the caller decides).
     Use it as a context manager to guarantee `close()`.
     """
@@ -168,6 +169,18 @@ class JointBus(abc.ABC):
     @abc.abstractmethod
     def read(self) -> JointSample:
         """Sample every joint once (one bus transaction per device family)."""
+
+    def start_read(self) -> None:
+        """The first half of `read()`: send the requests, do not wait for the answers.
+
+        A loop may do other work while the answers travel (on the testbed the Dynamixel reply
+        spends ~1 ms in the USB adapter alone), then call `finish_read()`. A bus that cannot
+        split its read does it all in `finish_read()` (this default)."""
+        return None  # the default sends nothing ahead
+
+    def finish_read(self) -> JointSample:
+        """The second half of `read()`: the answers to the last `start_read()`."""
+        return self.read()
 
     @abc.abstractmethod
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:

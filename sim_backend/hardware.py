@@ -29,6 +29,21 @@ from sim_backend.spec import EmulatorSpec
 from sim_backend.testbed import EmulatedJoint, Mounting, VirtualTestbed
 
 
+@dataclasses.dataclass
+class SampleInstant:
+    """How long after the plant's last physics step the sensors sample [s].
+
+    The plant advances in whole steps (1 ms) and a SYNC arrives between them: the realtime
+    emulator sets this when a SYNC arrives, and the link encoders latch the angle at that
+    instant (the last step's angle plus velocity times this), as a real encoder latches on the
+    SYNC, not on the emulator's last step. Without it the latched instant would jitter by up
+    to a step: at 0.8 rad/s (the link during an impact) that is 1e-3 rad of second difference
+    from tick to tick, which the supervisor rightly calls a noisy sensor. 0 in lock-step, where
+    the SYNC and the step coincide."""
+
+    after_step_s: float = 0.0
+
+
 class EmulatedHardware(Protocol):
     """What the buses serve and the physics clock they share (see the module docstring)."""
 
@@ -50,6 +65,8 @@ class EmulatedHardware(Protocol):
     def start_scenario(self) -> None: ...
 
     def advance(self, duration_s: float) -> int: ...
+
+    sample_instant: SampleInstant  # when, past the last step, the sensors latch
 
     # True: the robot hangs in its gantry (the plant does not move) until the host starts the
     # run (its first SYNC), as a humanoid is held until its joints hold it; False: the plant
@@ -74,8 +91,14 @@ def rng(seed: int, stream: int) -> np.random.Generator:
     return np.random.default_rng([seed, stream])
 
 
-def link_encoders(spec: EmulatorSpec, link_angle: Callable[[int], float]) -> list[LinkEncoderNode]:
-    """A CiA 406 link encoder per joint, reading `link_angle(joint)`, mounted as the spec says."""
+def link_encoders(
+    spec: EmulatorSpec,
+    link_angle: Callable[[int], float],
+    link_velocity: Callable[[int], float],
+    instant: SampleInstant,
+) -> list[LinkEncoderNode]:
+    """A CiA 406 link encoder per joint, latching `link_angle(joint)` at `instant` past the
+    last physics step (see `SampleInstant`), mounted as the spec says."""
     nodes = []
     for index, joint in enumerate(spec.joints):
         # The node multiplies by its direction; the driver computes direction * (reading -
@@ -84,7 +107,8 @@ def link_encoders(spec: EmulatorSpec, link_angle: Callable[[int], float]) -> lis
             index: int = index, direction: int = joint.encoder_direction,
             offset: float = joint.encoder_offset_rad,
         ) -> float:  # fmt: skip
-            return link_angle(index) + direction * offset
+            angle = link_angle(index) + link_velocity(index) * instant.after_step_s
+            return angle + direction * offset
 
         nodes.append(
             LinkEncoderNode(
@@ -123,9 +147,11 @@ class EmulatedTestbed:
         joints: list[EmulatedJoint],
         encoders: list[LinkEncoderNode],
         force_sensor: ForceSensorNode | None,
+        sample_instant: SampleInstant,
     ) -> None:
         self.devices = devices
         self.joints = joints
+        self.sample_instant = sample_instant
         self.mountings = [joint.motor_mounting for joint in joints]
         self.encoders = encoders
         self.force_sensor = force_sensor
@@ -154,8 +180,14 @@ class EmulatedTestbed:
             device.add_reboot_listener(joint.on_reboot)
             devices.append(device)
             joints.append(joint)
-        encoders = link_encoders(spec, lambda index: joints[index].plant.link_angle_rad)
-        hardware = cls(devices, joints, encoders, None)
+        instant = SampleInstant()
+        encoders = link_encoders(
+            spec,
+            lambda index: joints[index].plant.link_angle_rad,
+            lambda index: joints[index].plant.link_velocity_rad_s,
+            instant,
+        )
+        hardware = cls(devices, joints, encoders, None, instant)
         if spec.force_sensor_node_id:
             hardware.force_sensor = ForceSensorNode(
                 spec.force_sensor_node_id,

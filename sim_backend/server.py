@@ -185,7 +185,9 @@ class Emulator:
     def _on_sync(self) -> None:
         if self.sync_count == 0:
             self.testbed.start_scenario()
-        if not self.realtime:
+        if self.realtime:  # the encoders latch now, between two physics steps
+            self.hardware.sample_instant.after_step_s = self._time_past_last_step()
+        else:
             self.line.drain()  # goals written before this SYNC act over the coming period
             if self.sync_count > 0:
                 self.testbed.advance(self.spec.period_s)
@@ -211,6 +213,15 @@ class Emulator:
             self.testbed.advance(steps * dt)
             self._apply_faults()
         return self._wall_origin + self.testbed.time_s + dt
+
+    def _time_past_last_step(self) -> float:
+        """Wall time since the plant's last step, at most one step (behind by more, the
+        plant is lagging: extrapolating further would invent motion)."""
+        dt = self.testbed.physics_timestep_s
+        if self.sync_count == 0 and self.hardware.held_until_started:
+            return 0.0  # still in its gantry: the plant does not follow the wall clock
+        past = time.monotonic() - self._wall_origin - self.testbed.time_s
+        return min(max(past, 0.0), dt)
 
     def _node_time(self) -> float:
         return time.monotonic()

@@ -115,6 +115,7 @@ class DynamixelChain:
         self._port: LowLatencyPortHandler | None = None
         self._io: DeviceIO | None = None
         self._sync_read: GroupSyncRead | None = None
+        self._request_result: int | None = None  # request_state() sent, replies not collected
         self._sync_write: GroupSyncWrite | None = None
         self._raw = np.zeros((len(self._ids), len(self.layout.items)), dtype=np.int64)
         self.devices: tuple[DeviceInfo, ...] = ()
@@ -214,21 +215,36 @@ class DynamixelChain:
     # -------------------------------------------------------------------------- the 200 Hz path
 
     def read_state(self) -> DynamixelState:
-        """One SYNC_READ of the state block of every device (see the module docstring).
+        """One SYNC_READ of the state block of every device (see the module docstring):
+        `request_state()` then `receive_state()`.
 
         Never raises for a device that does not answer: its entries are invalid (NaN) and
         `errors` says why. Raises `BusError` if the chain is not open, `PortGoneError` (a
         BusError) if the port itself failed.
         """
-        io = self._require_io()
+        self.request_state()
+        return self.receive_state()
+
+    def request_state(self) -> None:
+        """Send the SYNC_READ and return at once: the replies travel (wire time, Return Delay
+        Time, the adapter's latency timer) while the caller does other work;
+        `receive_state()` collects them. The reply timeout runs from here."""
+        self._require_io()
         sync_read = self._sync_read
         assert sync_read is not None
+        self._request_result = sync_read.txPacket()
+
+    def receive_state(self) -> DynamixelState:
+        """The replies to the last `request_state()` (see `read_state`)."""
+        io = self._require_io()
+        result, self._request_result = self._request_result, None
+        if result is None:
+            raise BusError(f"{self.config.port}: receive_state() without request_state() first")
         raw = self._raw
         valid = np.zeros(len(self._ids), dtype=bool)
         alert = np.zeros(len(self._ids), dtype=bool)
         errors: list[str] = []
         reasons: dict[int, str] = {}  # why a device's entry is invalid, by ID
-        result = sync_read.txPacket()
         if result != COMM_SUCCESS:
             reason = f"sync read not sent: {self._packet.getTxRxResult(result)}"
             errors.append(reason)

@@ -22,7 +22,10 @@ from mcap.writer import CompressionType, Writer
 from hil.output.channels import Channel
 
 MCAP_NAME = "run.mcap"
-CHUNK_SIZE_BYTES = 256 * 1024  # a full chunk is written in well under a millisecond
+# Closing a chunk (its message indexes are built in Python) costs time in proportion to its size,
+# on the tick that fills it: measured with the testbed's three messages per tick, 256 KB chunks
+# took 1.5 ms (p99.9 of ticks) to 2.4 ms (max), 32 KB chunks 0.28 ms and 1.1 ms.
+CHUNK_SIZE_BYTES = 32 * 1024
 PROFILE = ""  # JSON messages follow no ROS profile
 
 

@@ -4,11 +4,12 @@ A run directory holds:
     meta.json     what ran: configuration, the hardware driven, controller, experiment, seed,
                   versions, start time
     log.csv       one row per tick (columns below), line-buffered: on disk when the row is done
+                  (the loop writes a tick's row during the next tick, see hil/loop/runner.py)
     events.jsonl  supervisor events (faults, safe states, exits), one JSON object per line
     summary.json  metrics and how the run ended (written at the end, even after an error)
     timing.csv    compute time per tick (kept out of log.csv, so lock-step logs are reproducible):
-                  bus read, controller + supervisor + write, and (log_s) writing the tick's
-                  log row and messages
+                  bus read (time in the bus's calls), controller + supervisor + write, and
+                  (log_s) writing the previous tick's rows while this tick's answers travelled
     run.mcap      (unless turned off) every one of these as JSON channels for Foxglove and
                   PlotJuggler (hil/output/channels.py, hil/output/mcap_log.py)
 
@@ -204,7 +205,8 @@ class RunLog:
         log_s: float = math.nan,
         time_s: float = math.nan,
     ) -> None:
-        """One tick's durations; log_s: writing its log row and messages."""
+        """One tick's durations; log_s: writing the previous tick's rows during this tick's
+        bus read (not part of read_s)."""
         cycle = read_s + compute_s + write_s
         self._timing_file.write(
             f"{tick},{read_s:.7f},{compute_s:.7f},{write_s:.7f},{cycle:.7f},{log_s:.7f}\n"

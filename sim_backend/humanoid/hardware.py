@@ -6,7 +6,13 @@ from __future__ import annotations
 from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
 from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
 from sim_backend.dynamixel import H54Device
-from sim_backend.hardware import baud_index, check_joint_count, link_encoders, rng
+from sim_backend.hardware import (
+    SampleInstant,
+    baud_index,
+    check_joint_count,
+    link_encoders,
+    rng,
+)
 from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams, leg_eeprom_overrides
 from sim_backend.humanoid.robot import EmulatedRobot, PelvisPush
 from sim_backend.spec import EmulatorSpec
@@ -24,8 +30,10 @@ class EmulatedHumanoid:
         devices: list[H54Device],
         encoders: list[LinkEncoderNode],
         ft_sensors: list[ForceTorqueSensorNode],
+        sample_instant: SampleInstant,
     ) -> None:
         self.robot = robot
+        self.sample_instant = sample_instant
         self.devices = devices
         self.mountings = list(robot.mountings)
         self.encoders = encoders
@@ -64,7 +72,8 @@ class EmulatedHumanoid:
             PelvisPush(p.start_s, p.duration_s, tuple(p.force_n))
             for p in spec.scenario.pelvis_pushes
         ]
-        encoders = link_encoders(spec, robot.link_angle_rad)
+        instant = SampleInstant()
+        encoders = link_encoders(spec, robot.link_angle_rad, robot.link_velocity_rad_s, instant)
         ft_sensors = [
             ForceTorqueSensorNode(
                 node_id,
@@ -76,7 +85,7 @@ class EmulatedHumanoid:
             for side, node_id in enumerate(humanoid.ft_sensor_node_ids)
             if node_id
         ]
-        return cls(robot, devices, encoders, ft_sensors)
+        return cls(robot, devices, encoders, ft_sensors, instant)
 
     @property
     def physics_timestep_s(self) -> float:

@@ -156,6 +156,9 @@ class HumanoidPlant:
             self.data.qpos[self._motor_qpos[joint]] + self.data.qpos[self._gear_qpos[joint]]
         )
 
+    def joint_link_velocity_rad_s(self, joint: int) -> float:
+        return float(self.data.qvel[self._motor_dof[joint]] + self.data.qvel[self._gear_dof[joint]])
+
     def joint_motor_torque_nm(self, joint: int) -> float:
         return float(self.data.actuator_force[self._actuator[joint]])
 

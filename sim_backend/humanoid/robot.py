@@ -208,6 +208,10 @@ class EmulatedRobot:
         """True link angle of one joint (the CAN link encoder quantises it)."""
         return self.plant.joint_link_angle_rad(joint)
 
+    def link_velocity_rad_s(self, joint: int) -> float:
+        """True link velocity of one joint."""
+        return self.plant.joint_link_velocity_rad_s(joint)
+
     def foot_wrench(self, side: int) -> tuple[np.ndarray, np.ndarray]:
         """The ground's (force [N], moment [N m]) on foot `side` in its sensor frame."""
         return self.plant.foot_wrench(side)
