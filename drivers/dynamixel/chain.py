@@ -200,6 +200,7 @@ class DynamixelChain:
         port, self._port = self._port, None
         self._io = None
         self._sync_read = None
+        self._request_result = None
         self._sync_write = None
         self._direct = None
         if port is not None and port.is_open:
@@ -229,7 +230,7 @@ class DynamixelChain:
         """Send the SYNC_READ and return at once: the replies travel (wire time, Return Delay
         Time, the adapter's latency timer) while the caller does other work;
         `receive_state()` collects them. The reply timeout runs from here."""
-        self._require_io()
+        self._settle()
         sync_read = self._sync_read
         assert sync_read is not None
         self._request_result = sync_read.txPacket()
@@ -490,6 +491,7 @@ class DynamixelChain:
 
     def read_hardware_error(self, dxl_id: int) -> HardwareErrorStatus:
         """A single READ of Hardware Error Status (892), with the Alert bit of that reply."""
+        self._settle()
         io = self._require_io()
         self._select([dxl_id])
         item = self.spec.item("Hardware Error Status")
@@ -509,7 +511,16 @@ class DynamixelChain:
             except BusError as exc:
                 errors.append(f"{io.label(dxl_id)}: Alert set, Hardware Error Status unread: {exc}")
 
+    def _settle(self) -> None:
+        """Collect the replies of a SYNC_READ that was sent and not collected (an exception
+        between `request_state` and `receive_state`) before the next transaction, which would
+        otherwise take them for its own status packets."""
+        if self._request_result is not None:
+            self.receive_state()
+        self._require_io()
+
     def _require_writable(self, what: str) -> DeviceIO:
+        self._settle()
         io = self._require_io()
         if self.read_only:
             raise BusError(

@@ -210,8 +210,10 @@ class Loop:
         k = tick.index
         t_read = time.perf_counter()
         self.bus.start_read()
-        log_s = self._write_kept_record()  # the last tick's rows, while the answers travel
-        sample = self.bus.finish_read()
+        try:
+            log_s = self._write_kept_record()  # the last tick's rows, while the answers travel
+        finally:  # whatever happened, the answers are collected: no transaction left open
+            sample = self.bus.finish_read()
         t_compute = time.perf_counter()
         if k == 0:
             sample = self._start(sample)

@@ -178,3 +178,30 @@ def test_ideal_servo_follows_goals_through_the_driver() -> None:
         chain.write_goals(goals)
         state = chain.read_state()
     np.testing.assert_allclose(state.position_rad, goals, atol=RAD_PER_PULSE / 2)
+
+
+def test_a_sync_read_left_uncollected_does_not_answer_the_next_transaction() -> None:
+    """request_state() and then, without receive_state() (an exception in between), torque off
+    and a READ: the chain stays usable, its late sync-read replies (500 us Return Delay Time
+    each) taken for nothing else (the chain collects them first, and its reads match replies
+    by ID and length besides)."""
+    joints = (joint(1), joint(2))
+    with (
+        spawn_emulated_chain(
+            ids=(1, 2),
+            firmware="none",
+            realtime=True,
+            eeprom_overrides={"Return Delay Time": 250},
+        ) as emu,
+        DynamixelChain(make_config(emu.port_path, joints)) as chain,
+    ):
+        chain.enable()
+        for _ in range(5):
+            chain.request_state()
+            chain.disable([1])
+            assert emu.item(1, "Torque Enable") == 0
+            assert chain.read_hardware_error(1).bits == 0
+            state = chain.read_state()
+            assert state.valid.all(), state.errors
+            assert list(state.torque_enabled) == [False, True]
+            chain.enable([1])
