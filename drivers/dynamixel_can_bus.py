@@ -35,6 +35,7 @@ from drivers.canbus import (
     LinkEncoderConfig,
     LinkEncoderReader,
 )
+from drivers.canbus.read_ahead import slcan_read_ahead
 from drivers.dynamixel import DynamixelChain, DynamixelChainConfig, actuator_fault
 from drivers.joint_bus import (
     ActuatorFault,
@@ -165,7 +166,8 @@ class DynamixelCanBus(JointBus):
                 )
             for channel in self.config.can_channels:
                 try:
-                    can_bus = can.Bus(**channel.bus_kwargs)
+                    # slcan (an emulated adapter's pty, a CANable): frames read whole
+                    can_bus = can.Bus(**slcan_read_ahead(channel.bus_kwargs))
                 except (can.CanError, OSError, ValueError) as exc:
                     raise BusError(f"cannot open the CAN bus {channel.description}: {exc}") from exc
                 reader = LinkEncoderReader(

@@ -63,6 +63,7 @@ from drivers.canbus.object_dictionary import (
     TPDO_MAPPING_BASE,
     sensor_object_dictionary,
 )
+from drivers.canbus.read_ahead import ReadAheadSerial
 from drivers.canbus.readings import ForceReading, LinkReading, WrenchReading
 from drivers.canbus.units import (
     force_n_from_counts,
@@ -181,6 +182,7 @@ class LinkEncoderReader:
             )
         self._bus = bus
         self._fd = _selectable_fileno(bus)
+        self._read_ahead = _read_ahead_port(bus)
         self._clock = clock
         self.bus_description = bus_description or f"{type(bus).__name__} ({bus.channel_info})"
         self._sdo_timeout_s = sdo_timeout_s
@@ -354,10 +356,13 @@ class LinkEncoderReader:
         fd = self._fd
         if fd is None:
             return self._bus.recv(timeout=max(deadline - time.monotonic(), 0.0))
+        ahead = self._read_ahead
         for _ in range(_MAX_FRAMES_PER_DRAIN):
-            wait_s = max(deadline - time.monotonic(), 0.0)
-            if not select.select((fd,), (), (), wait_s)[0]:
-                return None
+            # bytes a read-ahead port already holds do not make the descriptor readable
+            if ahead is None or not ahead.in_waiting:
+                wait_s = max(deadline - time.monotonic(), 0.0)
+                if not select.select((fd,), (), (), wait_s)[0]:
+                    return None
             msg = self._bus.recv(timeout=0.0)
             if msg is not None:
                 return msg
@@ -836,6 +841,13 @@ def _selectable_fileno(bus: can.BusABC) -> int | None:
     except (NotImplementedError, can.CanError, OSError, ValueError):
         return None
     return fd if isinstance(fd, int) and fd >= 0 else None
+
+
+def _read_ahead_port(bus: can.BusABC) -> ReadAheadSerial | None:
+    """The read-ahead serial port under python-can's slcan bus, if it has one
+    (drivers/canbus/read_ahead.py)."""
+    port = getattr(bus, "serialPortOrig", None)
+    return port if isinstance(port, ReadAheadSerial) else None
 
 
 def _state_name(state: int) -> str:
