@@ -136,7 +136,48 @@ def with_obstacle(
     return dataclasses.replace(params, obstacle=obstacle)
 
 
-class EmulatedTestbed:
+class SteppedPlant(Protocol):
+    """What steps the physics: the clock members of `EmulatedHardware`."""
+
+    @property
+    def physics_timestep_s(self) -> float: ...
+
+    @property
+    def time_s(self) -> float: ...
+
+    @property
+    def scenario_time_s(self) -> float | None: ...
+
+    def start_scenario(self) -> None: ...
+
+    def advance(self, duration_s: float) -> int: ...
+
+
+class PlantClock:
+    """`EmulatedHardware`'s clock members, passed on to `self.plant_clock`."""
+
+    plant_clock: SteppedPlant
+
+    @property
+    def physics_timestep_s(self) -> float:
+        return self.plant_clock.physics_timestep_s
+
+    @property
+    def time_s(self) -> float:
+        return self.plant_clock.time_s
+
+    @property
+    def scenario_time_s(self) -> float | None:
+        return self.plant_clock.scenario_time_s
+
+    def start_scenario(self) -> None:
+        self.plant_clock.start_scenario()
+
+    def advance(self, duration_s: float) -> int:
+        return self.plant_clock.advance(duration_s)
+
+
+class EmulatedTestbed(PlantClock):
     """The 1-DoF testbed (or n copies of it): a plant per joint behind its H54 firmware."""
 
     held_until_started = False
@@ -157,6 +198,7 @@ class EmulatedTestbed:
         self.force_sensor = force_sensor
         self.ft_sensors: list[ForceTorqueSensorNode] = []
         self.testbed = VirtualTestbed(joints)
+        self.plant_clock = self.testbed
 
     @classmethod
     def build(cls, spec: EmulatorSpec) -> EmulatedTestbed:
@@ -201,24 +243,6 @@ class EmulatedTestbed:
 
     def contact_force_n(self) -> float:
         return sum(j.plant.contact_force_n() for j in self.joints)
-
-    @property
-    def physics_timestep_s(self) -> float:
-        return self.testbed.physics_timestep_s
-
-    @property
-    def time_s(self) -> float:
-        return self.testbed.time_s
-
-    @property
-    def scenario_time_s(self) -> float | None:
-        return self.testbed.scenario_time_s
-
-    def start_scenario(self) -> None:
-        self.testbed.start_scenario()
-
-    def advance(self, duration_s: float) -> int:
-        return self.testbed.advance(duration_s)
 
 
 def check_joint_count(name: str, joints: Sequence[object], expected: int) -> None:

@@ -491,8 +491,7 @@ class DynamixelChain:
 
     def read_hardware_error(self, dxl_id: int) -> HardwareErrorStatus:
         """A single READ of Hardware Error Status (892), with the Alert bit of that reply."""
-        self._settle()
-        io = self._require_io()
+        io = self._settle()
         self._select([dxl_id])
         item = self.spec.item("Hardware Error Status")
         data, alert = io.read_bytes_with_alert(dxl_id, item.address, item.size, f"read {item.name}")
@@ -511,17 +510,16 @@ class DynamixelChain:
             except BusError as exc:
                 errors.append(f"{io.label(dxl_id)}: Alert set, Hardware Error Status unread: {exc}")
 
-    def _settle(self) -> None:
-        """Collect the replies of a SYNC_READ that was sent and not collected (an exception
-        between `request_state` and `receive_state`) before the next transaction, which would
-        otherwise take them for its own status packets."""
+    def _settle(self) -> DeviceIO:
+        """The port, for a new transaction: the replies of a SYNC_READ that was sent and not
+        collected (an exception between `request_state` and `receive_state`) are collected
+        first, so that the transaction does not take them for its own status packets."""
         if self._request_result is not None:
             self.receive_state()
-        self._require_io()
+        return self._require_io()
 
     def _require_writable(self, what: str) -> DeviceIO:
-        self._settle()
-        io = self._require_io()
+        io = self._settle()
         if self.read_only:
             raise BusError(
                 f"Dynamixel chain on {self.config.port} was opened read-only: {what} refused"

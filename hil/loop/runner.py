@@ -440,8 +440,7 @@ class Loop:
         started = time.perf_counter()
         row, timing = kept
         self.log.write_row(*row)
-        index, read_s, compute_s, write_s, previous_log_s, time_s = timing
-        self.log.write_timing(index, read_s, compute_s, write_s, previous_log_s, time_s)
+        self.log.write_timing(*timing)
         return time.perf_counter() - started
 
     def _log_safety(self) -> None:

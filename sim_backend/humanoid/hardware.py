@@ -7,6 +7,7 @@ from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
 from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
 from sim_backend.dynamixel import H54Device
 from sim_backend.hardware import (
+    PlantClock,
     SampleInstant,
     baud_index,
     check_joint_count,
@@ -19,7 +20,7 @@ from sim_backend.spec import EmulatorSpec
 from sim_backend.testbed import Mounting
 
 
-class EmulatedHumanoid:
+class EmulatedHumanoid(PlantClock):
     """See the module docstring; built from an `EmulatorSpec` whose robot is "dyros-jet"."""
 
     held_until_started = True  # in its gantry until the run starts (realtime clock)
@@ -33,6 +34,7 @@ class EmulatedHumanoid:
         sample_instant: SampleInstant,
     ) -> None:
         self.robot = robot
+        self.plant_clock = robot
         self.sample_instant = sample_instant
         self.devices = devices
         self.mountings = list(robot.mountings)
@@ -86,21 +88,3 @@ class EmulatedHumanoid:
             if node_id
         ]
         return cls(robot, devices, encoders, ft_sensors, instant)
-
-    @property
-    def physics_timestep_s(self) -> float:
-        return self.robot.physics_timestep_s
-
-    @property
-    def time_s(self) -> float:
-        return self.robot.time_s
-
-    @property
-    def scenario_time_s(self) -> float | None:
-        return self.robot.scenario_time_s
-
-    def start_scenario(self) -> None:
-        self.robot.start_scenario()
-
-    def advance(self, duration_s: float) -> int:
-        return self.robot.advance(duration_s)

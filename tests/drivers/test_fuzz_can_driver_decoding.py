@@ -18,7 +18,6 @@ Case counts: `max_examples` below, times FUZZ_SCALE (environment, default 1). Th
 
 from __future__ import annotations
 
-import os
 import struct
 import time
 import uuid
@@ -27,14 +26,14 @@ from collections.abc import Iterator
 import can
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from drivers.canbus import LinkEncoderConfig, LinkEncoderReader, link_angle_rad_from_counts
 from sim_backend.canbus import CanSegment, LinkEncoderNode, NodeRunner
 from sim_backend.canbus.testing import serve_in_background
+from tests.support.fuzzing import examples
 
-FUZZ_SCALE = max(1, int(os.environ.get("FUZZ_SCALE", "1")))
 N = 983_040
 CONFIGS = (LinkEncoderConfig(5), LinkEncoderConfig(6, direction=-1, offset_rad=0.2))
 TPDO = {0x185: 0, 0x186: 1}
@@ -42,14 +41,6 @@ TIMEOUT_S = 0.002
 MARGIN_S = 0.5  # a loaded machine may deschedule the test for a while; this bounds a hang
 
 pytestmark = pytest.mark.timeout(120)
-
-
-def examples(count: int) -> settings:
-    return settings(
-        max_examples=count * FUZZ_SCALE,
-        deadline=None,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 cob_ids = st.one_of(

@@ -20,13 +20,12 @@ Case counts: `max_examples` below, times FUZZ_SCALE (environment, default 1). Th
 from __future__ import annotations
 
 import importlib
-import os
 from collections.abc import Callable
 
 import numpy as np
 import pytest
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_SUCCESS
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import event, given
 from hypothesis import strategies as st
 
 import drivers.dynamixel.chain as chain_module
@@ -41,24 +40,16 @@ from drivers.joint_bus import BusError
 from sim_backend.dynamixel.chain import DynamixelChain as EmulatedChain
 from sim_backend.dynamixel.device import H54Device
 from sim_backend.dynamixel.protocol import PacketParser, build_status_packet
+from tests.support.fuzzing import examples
 
 # `drivers.dynamixel.scan` is also the name of the function the package exports.
 scan_module = importlib.import_module("drivers.dynamixel.scan")
-FUZZ_SCALE = max(1, int(os.environ.get("FUZZ_SCALE", "1")))
 IDS = (1, 2, 3)
 BAUD = 4_000_000
 READ_STEP_MS = 0.01  # virtual time one readPort call takes when bytes are waiting
 IDLE_STEP_MS = 0.1  # ... and when none are (the SDK polls an empty port)
 
 pytestmark = pytest.mark.timeout(180)
-
-
-def examples(count: int) -> settings:
-    return settings(
-        max_examples=count * FUZZ_SCALE,
-        deadline=None,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 Mangle = Callable[[bytes], list[tuple[float, bytes]]]  # replies -> [(delay ms, chunk)]

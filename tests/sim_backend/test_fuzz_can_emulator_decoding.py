@@ -21,25 +21,17 @@ import time
 
 import can
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from sim_backend.canbus.encoder_node import LinkEncoderNode
 from sim_backend.canbus.slcan_pty import SlcanPty
+from tests.support.fuzzing import examples
 
-FUZZ_SCALE = max(1, int(os.environ.get("FUZZ_SCALE", "1")))
 NODE = 5
 N = 983_040
 
 pytestmark = pytest.mark.timeout(120)
-
-
-def examples(count: int) -> settings:
-    return settings(
-        max_examples=count * FUZZ_SCALE,
-        deadline=None,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 # --- the SLCAN adapter -----------------------------------------------------------------------

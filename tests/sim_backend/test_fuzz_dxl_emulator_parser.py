@@ -26,7 +26,7 @@ import tty
 
 import pytest
 from dynamixel_sdk import PacketHandler
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from sim_backend.dynamixel.chain import DynamixelChain
@@ -44,22 +44,14 @@ from sim_backend.dynamixel.protocol import (
     build_instruction_packet,
     parse_packet,
 )
+from tests.support.fuzzing import examples
 
-FUZZ_SCALE = max(1, int(os.environ.get("FUZZ_SCALE", "1")))
 IDS = (1, 2)
 LED_RED = 563  # RAM, 1 byte, 0..255: a write any test can check
 IDLE_S = 2 * BYTE_TIMEOUT_S
 SDK = PacketHandler(2.0)  # an independent CRC and unstuffing, for the oracle
 
 pytestmark = pytest.mark.timeout(120)
-
-
-def examples(count: int) -> settings:
-    return settings(
-        max_examples=count * FUZZ_SCALE,
-        deadline=None,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 # --- strategies ------------------------------------------------------------------------------
