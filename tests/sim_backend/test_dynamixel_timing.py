@@ -124,11 +124,16 @@ def test_realtime_round_trip_grows_with_return_delay_and_falls_with_baud() -> No
     if reason is not None:
         print(f"\nsub-millisecond differences not checked: {reason}")
         return
+    # The differences between conditions come from separate emulator processes, measured one
+    # after the other: scheduling noise only ever adds to a round trip, so each condition's
+    # fastest round trip is the one least touched by it (lower quartiles differed by 0.83 ms
+    # for a 0.5 ms Return Delay Time on CI's loaded machine).
+    fastest = {key: values[0] for key, values in samples.items()}
     for baud_bps in (57_600, 1_000_000):  # Return Delay Time 250 adds 0.5 ms
-        added_s = typical[(baud_bps, 250)] - typical[(baud_bps, 0)]
+        added_s = fastest[(baud_bps, 250)] - fastest[(baud_bps, 0)]
         assert added_s == pytest.approx(500e-6, abs=300e-6)
     for return_delay_units in (0, 250):  # 57,600 bps costs 29 bytes x (10/57600 - 10/1e6) more
-        added_s = typical[(57_600, return_delay_units)] - typical[(1_000_000, return_delay_units)]
+        added_s = fastest[(57_600, return_delay_units)] - fastest[(1_000_000, return_delay_units)]
         expected_s = READ_4_WIRE_BYTES * 10 * (1 / 57_600 - 1 / 1_000_000)
         assert added_s == pytest.approx(expected_s, abs=700e-6)
 
