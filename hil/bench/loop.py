@@ -40,6 +40,7 @@ from hil.bench.common import (
     with_bench_reply_timeout,
     with_retries,
 )
+from hil.bench.machine import bench_cpu_stalls, bench_idle_sleeper, stall_counts_longer_than
 from hil.config import Config, robot_of
 from hil.experiments import IMPACT, STAND, Experiment
 from hil.loop import (
@@ -339,28 +340,6 @@ def bench_wall_clock(
     }
 
 
-def bench_idle_sleeper(period_s: float, ticks: int) -> dict[str, Any]:
-    """The machine's own wake-up lateness: a loop that only sleeps to a `period_s` grid (no
-    bus, no emulator), for `ticks` periods. A wake-up later than a control tick's slack
-    overruns that tick whatever the loop does; on the 2-core KVM machine of the closing note,
-    lateness above 2 ms came several times a minute, with or without SCHED_FIFO."""
-    lateness = np.empty(ticks)
-    origin = time.perf_counter()
-    for k in range(ticks):
-        deadline = origin + (k + 1) * period_s
-        remaining = deadline - time.perf_counter()
-        if remaining > 0:
-            time.sleep(remaining)
-        lateness[k] = time.perf_counter() - deadline
-    return {
-        "ticks": ticks,
-        "lateness": dataclasses.asdict(Distribution.of(lateness)),
-        "late_by_more_than_s": {
-            str(bound): int(np.count_nonzero(lateness > bound)) for bound in (0.001, 0.002, 0.003)
-        },
-    }
-
-
 def run_bench_loop(
     config: Config,
     ticks: int = DEFAULT_LOOP_TICKS,
@@ -391,6 +370,8 @@ def run_bench_loop(
             wall = {"error": str(exc), "rate_hz": config.loop.rate_hz}
     say(f"bench loop: an idle {config.loop.rate_hz:g} Hz sleeper as long (the machine's own) ...")
     sleeper = bench_idle_sleeper(config.loop.period_s, ticks)
+    say("bench loop: a process that never sleeps, as long (when the CPU is taken from it) ...")
+    stalls = bench_cpu_stalls(ticks * config.loop.period_s)
     return {
         "bench": "loop",
         "machine": machine(),
@@ -407,6 +388,7 @@ def run_bench_loop(
         "lockstep_run": lockstep,
         "wall_clock_run": wall,
         "idle_sleeper": sleeper,
+        "cpu_stalls": stalls,
     }
 
 
@@ -473,6 +455,14 @@ def loop_report_text(report: dict[str, Any]) -> str:
         f"tick, which runs the start gate; with it: {wall['overruns_with_start_tick']} overruns)",
         *termination_text(wall),
     ]
+    lines += _machine_text(report, wall)
+    return "\n".join(lines)
+
+
+def _machine_text(report: dict[str, Any], wall: dict[str, Any]) -> list[str]:
+    """The idle sleeper and the CPU stalls beside the wall-clock run: how many of the stalls
+    were longer than the loop's median slack (each that lands in a cycle overruns it)."""
+    lines: list[str] = []
     sleeper = report.get("idle_sleeper")
     if sleeper:
         late = sleeper["late_by_more_than_s"]
@@ -484,4 +474,36 @@ def loop_report_text(report: dict[str, Any]) -> str:
             f"{Distribution(**sleeper['lateness']).text()}; later than 1 / 2 / 3 ms: "
             f"{late['0.001']} / {late['0.002']} / {late['0.003']} times",
         ]
-    return "\n".join(lines)
+    stalls = report.get("cpu_stalls")
+    if not stalls:
+        return lines
+    longer = stalls["longer_than_s"]
+    counts = " / ".join(str(longer[bound]["all"]) for bound in sorted(longer, key=float))
+    bounds = " / ".join(f"{float(bound) * 1e3:g}" for bound in sorted(longer, key=float))
+    taken = stalls["stalls"]["count"]
+    longest = f", longest {stalls['stalls']['max_s'] * 1e3:.2f} ms" if taken else ""
+    steal = stalls["steal_s_all_cpus"]
+    steal_text = f"{steal * 1e3:.0f} ms" if steal is not None and math.isfinite(steal) else "n/a"
+    lines.append(
+        f"  a process that never sleeps, {stalls['duration_s']:g} s: the CPU was taken from it "
+        f"{taken} times for >= 0.5 ms ({stalls['stalled_s'] * 1e3:.0f} ms in all{longest}); "
+        f"longer than {bounds} ms: {counts} times; the kernel's steal time over all CPUs "
+        f"{steal_text}"
+    )
+    slack = wall.get("slack", {}).get("median_s")
+    if isinstance(slack, float) and math.isfinite(slack) and slack > 0:
+        over = stall_counts_longer_than(stalls, slack)
+        lines.append(
+            f"  stalls longer than the loop's median slack ({slack * 1e3:.2f} ms): {over['all']}, "
+            f"of which {over['outside']} from outside the OS (not waiting in its runqueue, not "
+            f"blocked: a hypervisor or firmware), {over['runqueue']} the OS running another "
+            f"task; each that lands in a cycle overruns it whatever the loop does"
+        )
+    wires_s = report["period_s"] - report["tick_budget"]["overlapped_s"]
+    floor = stall_counts_longer_than(stalls, wires_s)
+    lines.append(
+        f"  stalls longer than {wires_s * 1e3:.2f} ms, the slack of a loop that did nothing but "
+        f"wait for its wires ({report['tick_budget']['overlapped_s'] * 1e3:.2f} ms): "
+        f"{floor['all']}, of which {floor['outside']} from outside the OS"
+    )
+    return lines

@@ -125,5 +125,8 @@ def test_bench_loop_smoke(capsys: pytest.CaptureFixture[str]) -> None:
     assert isinstance(wall["overruns"], int) and isinstance(wall["skipped_ticks"], int)
     assert wall["overruns"] <= wall["ticks"]
     assert wall["latency_timer_ms"] >= 10.0
+    stalls = report["cpu_stalls"]
+    assert stalls["duration_s"] == pytest.approx(ticks * 0.005)
+    assert len(stalls["lengths_s"]) == len(stalls["sources"]) == stalls["stalls"]["count"]
     text = loop_report_text(report)
-    assert "real-time factor" in text and "lateness" in text
+    assert "real-time factor" in text and "lateness" in text and "never sleeps" in text
