@@ -238,7 +238,11 @@ def _run_impact(base: Config, ticks: int, realtime: bool, out_dir: Path) -> _Run
     period_s = base.loop.period_s
     clock_kind = EmulatorClock.REALTIME if realtime else EmulatorClock.LOCKSTEP
     spec = emulator_spec(base, experiment=experiment, clock=clock_kind)
-    inner: LoopClock = WallClock(period_s) if realtime else LockstepClock(period_s)
+    inner: LoopClock = (
+        WallClock(period_s, spin_s=base.loop.spin_before_tick_s)
+        if realtime
+        else LockstepClock(period_s)
+    )
     capacity = ticks + 2 * base.loop.stop_cycles + 1
     clock = RecordingClock(inner, capacity)
     request = RunRequest(

@@ -40,6 +40,13 @@ class LoopSection(Section):
     rate_hz: float = Field(200.0, gt=0, le=2000)  # Kim et al.: "The control frequency is 200 Hz"
     stop_cycles: int = Field(5, ge=0, le=1000)  # hold commands at start-up and before shutdown
     bus_read_timeout_ms: float = Field(2.0, gt=0, le=1000)  # a tick's wait for the TPDOs
+    # the wall clock sleeps to this long before a tick, then spins; a period or more: it never
+    # sleeps (a core of its own busy; fewer late ticks on a virtual machine: docs/realtime.md)
+    spin_before_tick_ms: float = Field(0.3, ge=0, le=1000)
+
+    @property
+    def spin_before_tick_s(self) -> float:
+        return self.spin_before_tick_ms / 1000.0
 
     @property
     def period_s(self) -> float:

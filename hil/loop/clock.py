@@ -69,12 +69,16 @@ class WallClockStats:
 
 
 class WallClock(LoopClock):
-    """Absolute deadlines on time.perf_counter; sleeps, then spins the last `spin_s`."""
+    """Absolute deadlines on time.perf_counter; sleeps, then spins the last `spin_s` (a period
+    or more: never sleeps). Spinning keeps the CPU busy, and on a virtual machine a busy virtual
+    CPU is not halted: it is woken without the hypervisor's help (docs/realtime.md)."""
 
     deterministic = False
 
     def __init__(self, period_s: float, spin_s: float = 0.0003) -> None:
         super().__init__(period_s)
+        if not spin_s >= 0.0:
+            raise ValueError(f"spin_s must be >= 0 s, got {spin_s!r}")
         self.spin_s = spin_s
         self.stats = WallClockStats()
         self._start: float | None = None

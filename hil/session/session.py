@@ -174,7 +174,9 @@ class Session:
             and not self.realtime
             and (self.setup is Setup.EMBEDDED or attached_lockstep)
         )
-        return LockstepClock(period) if lockstep else WallClock(period)
+        if lockstep:
+            return LockstepClock(period)
+        return WallClock(period, spin_s=self.config.loop.spin_before_tick_s)
 
     def labelled(self, choice: ControllerChoice) -> ControllerChoice:
         """The choice with its reading of (25) named when the configuration's is not the lab's

@@ -58,6 +58,10 @@ def test_hil_config_prints_a_file_that_loads(capsys, tmp_path: Path) -> None:
         (_with("rate_hz = 200.0", "rate_hz = nan"), r"rate_hz: Input should be a finite number"),
         (_with("rate_hz = 200.0", "rate_hz = true"), r"rate_hz: Input should be a valid number"),
         (
+            _with("spin_before_tick_ms = 0.3", "spin_before_tick_ms = -0.1"),
+            r"\[loop\] spin_before_tick_ms: Input should be greater than or equal to 0",
+        ),
+        (
             _with("min_angle_rad = -0.8", "min_angle_rad = 0.9"),
             r"\[\[joint\]\] #1 'testbed': min_angle_rad \(0.9\) must be below max_angle_rad",
         ),
