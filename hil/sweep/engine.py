@@ -29,7 +29,7 @@ from typing import Any
 
 from hil.config import Config
 from hil.sweep.maps import write_maps
-from hil.sweep.processes import descendants, shutdown_ray_started_here
+from hil.sweep.processes import adopt_orphans, descendants, shutdown_ray_started_here
 from hil.sweep.relations import PointRelation, RelationFraction, fractions, point_relations
 from hil.sweep.spec import Sampling, SweepSpec, Task, plan, resolved
 from hil.sweep.table import ResultsTable, header
@@ -137,6 +137,7 @@ def start_ray(workers: int | None, address: str | None) -> None:
     # ignored (inherited through exec), they leave the signal to this process, which cancels
     # the runs and shuts Ray down in order.
     main_thread = threading.current_thread() is threading.main_thread()
+    adopt_orphans()  # an agent whose raylet died anyway comes to us, to be ended at shutdown
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
     try:
         ray.init(num_cpus=workers, include_dashboard=False, **quiet)

@@ -7,6 +7,11 @@ minutes after a Ctrl-C'd sweep. So the sweep notes every descendant of this proc
 shuts Ray down (those that were there before Ray started excepted), gives them `grace_s` to
 leave on their own, then sends SIGTERM and, after `grace_s` more, SIGKILL to any that remain.
 
+An agent whose raylet died first (a raylet may handle SIGINT itself) would be reparented to
+init and no longer be found below this process: `adopt_orphans()`, called before Ray starts,
+makes this process their "child subreaper" (Linux prctl), so orphans below it come to it
+instead.
+
 Processes are found through /proc (Linux); elsewhere only `ray.shutdown()` runs. A process is
 known by its pid and start time, so a pid reused meanwhile is never signalled.
 """
@@ -14,6 +19,7 @@ known by its pid and start time, so a pid reused meanwhile is never signalled.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import signal
 import time
@@ -22,6 +28,7 @@ from typing import Any
 
 PROC = Path("/proc")
 GRACE_S = 5.0
+PR_SET_CHILD_SUBREAPER = 36  # linux/prctl.h
 
 ProcessId = tuple[int, int]  # (pid, start time in clock ticks since boot)
 
@@ -68,8 +75,19 @@ def _wait_gone(processes: set[ProcessId], seconds: float) -> set[ProcessId]:
     return left
 
 
+def adopt_orphans() -> bool:
+    """Become the child subreaper of everything below this process (Linux); False where that
+    is not possible."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
 def end_processes(processes: set[ProcessId], grace_s: float = GRACE_S) -> set[ProcessId]:
-    """Wait, then SIGTERM, then SIGKILL; returns the processes still alive at the end."""
+    """Wait, then SIGTERM, then SIGKILL; returns the processes still alive at the end (an
+    ended process may stay a zombie until its parent reaps it; it is not alive)."""
     left = _wait_gone(processes, grace_s)
     for sig in (signal.SIGTERM, signal.SIGKILL):
         for pid, _ in left:

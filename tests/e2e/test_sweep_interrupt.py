@@ -39,10 +39,16 @@ def _rows(out: Path) -> list[dict[str, str]]:
 
 
 def _ray_processes() -> set[str]:
-    """pid and command of every Ray process on the machine (raylet, GCS, workers)."""
+    """pid and command of every Ray process running on the machine (raylet, GCS, workers). A
+    zombie (`<defunct>`) has ended: only its exit status waits for a parent that may never
+    reap it."""
     ps = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
     markers = ("raylet", "gcs_server", "ray::", "default_worker.py")
-    return {line.strip() for line in ps.splitlines() if any(m in line for m in markers)}
+    return {
+        line.strip()
+        for line in ps.splitlines()
+        if any(m in line for m in markers) and "<defunct>" not in line
+    }
 
 
 def _new_ray_processes(before: set[str]) -> set[str]:

@@ -77,3 +77,29 @@ def test_shutdown_ends_what_started_after_and_leaves_what_was_there_before() -> 
     finally:
         there_before.kill()
         there_before.wait()
+
+
+# a process that adopts orphans, starts SPAWNER, kills it (orphaning its grandchild), then
+# finds the grandchild below itself and ends it
+ADOPTER = f"""
+import os, subprocess, sys, time
+from hil.sweep.processes import adopt_orphans, descendants, end_processes
+assert adopt_orphans()
+child = subprocess.Popen([sys.executable, "-c", {SPAWNER!r}])
+deadline = time.monotonic() + 10
+while len(descendants(os.getpid())) < 2 and time.monotonic() < deadline:
+    time.sleep(0.05)
+child.kill(); child.wait()
+orphans = descendants(os.getpid())
+print(len(orphans), flush=True)
+print(len(end_processes(orphans, grace_s=0.3)), flush=True)
+"""
+
+
+def test_an_adopting_process_finds_its_orphaned_grandchild_and_ends_it() -> None:
+    result = subprocess.run(
+        [sys.executable, "-c", ADOPTER], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 0, result.stderr
+    # the grandchild (ignoring SIGTERM) was found below the adopter after its parent died
+    assert result.stdout.split() == ["1", "0"], result.stdout
