@@ -1,5 +1,5 @@
-"""`hil bench bus|loop|log|soak|sweep [--json] [--cycles N] [--runs N] [--config F]`: measure,
-print the figures."""
+"""`hil bench bus|loop|pacing|log|soak|sweep [--json] [--cycles N] [--runs N] [--config F]`:
+measure, print the figures."""
 
 from __future__ import annotations
 
@@ -12,6 +12,12 @@ from hil.bench.bus import DEFAULT_BUS_CYCLES, bus_report_text, run_bench_bus
 from hil.bench.common import BenchError, without_nan
 from hil.bench.log import DEFAULT_LOG_TICKS, log_report_text, run_bench_log
 from hil.bench.loop import DEFAULT_LOOP_TICKS, loop_report_text, run_bench_loop
+from hil.bench.pacing import (
+    DEFAULT_PACING_PAIRS,
+    DEFAULT_PACING_TICKS,
+    pacing_report_text,
+    run_bench_pacing,
+)
 from hil.bench.soak import DEFAULT_SOAK_TICKS, run_soak, soak_report_text
 from hil.cli.common import checked_config
 from hil.cli.exit_codes import ExitCode
@@ -46,8 +52,8 @@ def _bench_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    """`hil bench bus|loop|soak [--json] [--cycles N] [--seed S]`; soak exits 1 when a reaction
-    missed its bound, a row was lost or an exit state was misreported."""
+    """`hil bench bus|loop|pacing|log|soak [--json] [--cycles N] [--seed S] [--runs N]`; soak
+    exits 1 when a reaction missed its bound, a row was lost or an exit state was misreported."""
     if args.what == "sweep":
         return _bench_sweep(args)
     cycles = args.cycles
@@ -56,6 +62,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return ExitCode.USAGE
     if args.seed < 0:
         print(f"hil bench: --seed must be >= 0, got {args.seed}", file=sys.stderr)
+        return ExitCode.USAGE
+    if args.runs is not None and args.runs < 1:
+        print(f"hil bench: --runs must be >= 1, got {args.runs}", file=sys.stderr)
         return ExitCode.USAGE
     config = checked_config(args.config, args.robot)
 
@@ -74,6 +83,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
         elif args.what == "loop":
             report = run_bench_loop(config, cycles or DEFAULT_LOOP_TICKS, say=say)
             text = loop_report_text(report)
+        elif args.what == "pacing":
+            pairs = args.runs or DEFAULT_PACING_PAIRS
+            report = run_bench_pacing(config, cycles or DEFAULT_PACING_TICKS, pairs, say=say)
+            text = pacing_report_text(report)
         else:
             report = run_soak(config, cycles or DEFAULT_SOAK_TICKS, seed=args.seed, say=say)
             text = soak_report_text(report)

@@ -10,7 +10,7 @@ from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
 from hil.session.comparison import NAMED_COMPARISONS
 
-BENCH_TARGETS = ("bus", "loop", "soak", "log", "sweep")
+BENCH_TARGETS = ("bus", "loop", "pacing", "soak", "log", "sweep")
 
 
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
@@ -191,7 +191,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seed", type=int, default=0, help="soak: the faults' random seed")
     bench.add_argument("--config", type=Path, help="hardware to emulate (default: built-in)")
     _add_robot(bench)
-    bench.add_argument("--runs", type=int, default=None, help="sweep: runs per measurement")
+    bench.add_argument(
+        "--runs", type=int, default=None, help="sweep: runs per measurement; pacing: pairs of runs"
+    )
 
     _add_identify(sub)
     _add_sweep(sub)

@@ -22,6 +22,7 @@ from drivers.dynamixel.wire_time import sync_cycle_wire_time_s
 from hil.bench.bus import EMULATOR_LINES, JOINT_COUNTS, bus_report_text
 from hil.bench.common import config_with_joints
 from hil.bench.loop import loop_report_text
+from hil.bench.pacing import pacing_report_text
 from hil.cli import main
 from hil.cli.bench import cmd_bench
 from hil.cli.parser import build_parser
@@ -130,3 +131,29 @@ def test_bench_loop_smoke(capsys: pytest.CaptureFixture[str]) -> None:
     assert len(stalls["lengths_s"]) == len(stalls["sources"]) == stalls["stalls"]["count"]
     text = loop_report_text(report)
     assert "real-time factor" in text and "lateness" in text and "never sleeps" in text
+
+
+@pytest.mark.timeout(180)
+def test_bench_pacing_alternates_the_two_ways_to_wait(capsys: pytest.CaptureFixture[str]) -> None:
+    ticks = 10
+    assert main(["bench", "pacing", "--json", "--cycles", str(ticks), "--runs", "2"]) == 0
+    report = _one_json_line(capsys)
+    assert report["bench"] == "pacing" and report["cases_ms"] == [0.3, 5.0]
+    # A B A B: the configured sleep-then-spin, then never sleeping, in turn
+    assert [(r["pair"], r["spin_before_tick_ms"]) for r in report["runs"]] == [
+        (0, 0.3),
+        (0, 5.0),
+        (1, 0.3),
+        (1, 5.0),
+    ]
+    for run in report["runs"]:
+        assert run["ticks"] >= ticks and run["period"]["count"] >= 2
+    a = sum(r["overruns"] for r in report["runs"] if r["spin_before_tick_ms"] == 0.3)
+    assert report["overruns"][0] == a
+    assert 0 <= report["pairs_fewer_never_sleeping"] <= 2
+    assert "never sleep" in pacing_report_text(report)
+
+
+def test_bench_refuses_a_pacing_run_count_below_one(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "pacing", "--runs", "0"]) == 2
+    assert "--runs must be >= 1" in capsys.readouterr().err
