@@ -44,14 +44,8 @@ class SampleInstant:
     after_step_s: float = 0.0
 
 
-class EmulatedHardware(Protocol):
-    """What the buses serve and the physics clock they share (see the module docstring)."""
-
-    devices: list[H54Device]  # one per joint, in the spec's joint order
-    mountings: list[Mounting]  # how each actuator is mounted (the host's offset/direction)
-    encoders: list[LinkEncoderNode]  # one per joint
-    force_sensor: ForceSensorNode | None
-    ft_sensors: list[ForceTorqueSensorNode]
+class SteppedPlant(Protocol):
+    """What steps the physics: the clock members of `EmulatedHardware` (and of its plants)."""
 
     @property
     def physics_timestep_s(self) -> float: ...
@@ -66,6 +60,15 @@ class EmulatedHardware(Protocol):
 
     def advance(self, duration_s: float) -> int: ...
 
+
+class EmulatedHardware(SteppedPlant, Protocol):
+    """What the buses serve and the physics clock they share (see the module docstring)."""
+
+    devices: list[H54Device]  # one per joint, in the spec's joint order
+    mountings: list[Mounting]  # how each actuator is mounted (the host's offset/direction)
+    encoders: list[LinkEncoderNode]  # one per joint
+    force_sensor: ForceSensorNode | None
+    ft_sensors: list[ForceTorqueSensorNode]
     sample_instant: SampleInstant  # when, past the last step, the sensors latch
 
     # True: the robot hangs in its gantry (the plant does not move) until the host starts the
@@ -134,23 +137,6 @@ def with_obstacle(
     approach = 1 if contact_angle_rad > params.initial_link_angle_rad else -1
     obstacle = ObstacleParams(contact_angle_rad=contact_angle_rad, approach=approach)
     return dataclasses.replace(params, obstacle=obstacle)
-
-
-class SteppedPlant(Protocol):
-    """What steps the physics: the clock members of `EmulatedHardware`."""
-
-    @property
-    def physics_timestep_s(self) -> float: ...
-
-    @property
-    def time_s(self) -> float: ...
-
-    @property
-    def scenario_time_s(self) -> float | None: ...
-
-    def start_scenario(self) -> None: ...
-
-    def advance(self, duration_s: float) -> int: ...
 
 
 class PlantClock:

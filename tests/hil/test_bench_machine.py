@@ -14,6 +14,7 @@ import pytest
 
 from hil.bench.machine import (
     LinuxThreadAccounting,
+    Stall,
     StallSource,
     ThreadCounters,
     probe_cpu_stalls,
@@ -99,6 +100,10 @@ linux_accounting = pytest.mark.skipif(
 )
 
 
+def _stalled_s(stalls: list[Stall], source: StallSource) -> float:
+    return sum(stall.length_s for stall in stalls if stall.source is source)
+
+
 @pytest.fixture
 def one_cpu() -> Iterator[int]:
     """This thread on one CPU for the test, its affinity restored after."""
@@ -123,8 +128,7 @@ def test_another_task_on_the_same_cpu_shows_as_runqueue_stalls(one_cpu: int) -> 
         hog.kill()
         hog.wait()
     # two CPU-bound tasks on one CPU take turns in slices of milliseconds
-    runqueue = [stall for stall in stalls if stall.source is StallSource.RUNQUEUE]
-    assert sum(stall.length_s for stall in runqueue) > 0.2, stalls[:10]
+    assert _stalled_s(stalls, StallSource.RUNQUEUE) > 0.2, stalls[:10]
 
 
 @linux_accounting
@@ -144,8 +148,7 @@ def test_a_thread_holding_the_gil_shows_as_blocked_stalls() -> None:
         done.set()
         other.join()
     # the interpreter hands the GIL over every switch interval (5 ms): the probe waits for it
-    blocked = [stall for stall in stalls if stall.source is StallSource.BLOCKED]
-    assert sum(stall.length_s for stall in blocked) > 0.1, stalls[:10]
+    assert _stalled_s(stalls, StallSource.BLOCKED) > 0.1, stalls[:10]
 
 
 @linux_accounting
