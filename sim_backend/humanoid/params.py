@@ -99,29 +99,35 @@ class ContactParams:
     MuJoCo's default soft contact, 20 x the 1 ms step (a stable choice for `implicitfast`).
 
     friction_cone / friction_impedance_ratio: MuJoCo's `cone` and `impratio`. MuJoCo's friction
-    constraints are soft like its normal ones: at its defaults (pyramidal cone, impratio 1, kept
-    here as the default) a sole loaded far inside its friction cone still creeps. Measured
-    (walking-ready posture, gravity-compensated goals held;
+    constraints are soft like its normal ones: at MuJoCo's defaults (pyramidal cone, impratio 1,
+    `ContactParams.creeping()`) a sole loaded far inside its friction cone still creeps.
+    Measured (walking-ready posture, gravity-compensated goals held;
     tests/sim_backend/test_humanoid_contact_creep.py): the splayed legs push each sole outward
     by ~4 N against mu Fz = 245 N, and the feet spread by 1.75 mm in 3 s, ~0.6 mm/s, for ever;
-    rubber soles on a floor stick. `ContactParams.sticking()` (elliptic cone, impratio 100:
-    MuJoCo's remedy, impratio > 1 makes the friction dimensions harder than the normal one,
-    elliptic cones only; the MuJoCo Menagerie's legged robots use 100) spreads them 0.02 mm in
-    3 s; the normal contact (solref) is unchanged. Not the default yet: with sticking soles
-    the internal force of double support stays where the settling left it (statically
-    indeterminate), ~1 N m on the hip rolls, which two statics tests do not allow for.
+    rubber soles on a floor stick. The default (elliptic cone, impratio 100: MuJoCo's remedy,
+    impratio > 1 makes the friction dimensions harder than the normal one, elliptic cones only;
+    the MuJoCo Menagerie's legged robots use 100) spreads them 0.02 mm in 3 s; the normal
+    contact (solref) is the same in both. With sticking soles the internal force of double
+    support stays where the settling left it (statically indeterminate, as on a real robot):
+    tests judge double support modulo that internal force.
     """
 
     friction: float = 1.0
     time_constant_s: float = 0.02
     damping_ratio: float = 1.0
-    friction_cone: Literal["elliptic", "pyramidal"] = "pyramidal"
-    friction_impedance_ratio: float = 1.0
+    friction_cone: Literal["elliptic", "pyramidal"] = "elliptic"
+    friction_impedance_ratio: float = 100.0
 
     @classmethod
     def sticking(cls) -> ContactParams:
-        """Soles that stick inside their friction cone (elliptic cone, impratio 100)."""
+        """Soles that stick inside their friction cone (elliptic cone, impratio 100): the
+        default."""
         return cls(friction_cone="elliptic", friction_impedance_ratio=100.0)
+
+    @classmethod
+    def creeping(cls) -> ContactParams:
+        """MuJoCo's own defaults (pyramidal cone, impratio 1): loaded soles creep ~0.6 mm/s."""
+        return cls(friction_cone="pyramidal", friction_impedance_ratio=1.0)
 
     def __post_init__(self) -> None:
         if self.friction_cone not in ("elliptic", "pyramidal"):

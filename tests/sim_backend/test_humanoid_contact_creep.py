@@ -2,9 +2,9 @@
 
 Standing in the walking-ready posture with the gravity-compensated goals held (no feedback),
 the splayed legs push each sole outward by ~4 N against mu Fz = 245 N: a sole must not move.
-MuJoCo's soft friction at its defaults (pyramidal cone, impratio 1; still the emulator's
-default) lets the feet spread at ~0.5 mm/s; `ContactParams.sticking()` (elliptic, impratio
-100) holds them.
+MuJoCo's soft friction at its own defaults (pyramidal cone, impratio 1:
+`ContactParams.creeping()`) lets the feet spread at ~0.5 mm/s; the emulator's default
+(`ContactParams.sticking()`: elliptic, impratio 100) holds them.
 """
 
 from __future__ import annotations
@@ -54,11 +54,12 @@ def _feet_spread_m(contact: ContactParams, seconds: float) -> tuple[float, float
 
 @pytest.mark.slow
 def test_loaded_soles_do_not_creep() -> None:
-    spread, margin = _feet_spread_m(ContactParams.sticking(), 1.0)
+    assert ContactParams() == ContactParams.sticking()  # the emulator's default
+    spread, margin = _feet_spread_m(ContactParams(), 1.0)
     assert margin > 20  # deep inside the friction cone: a real sole sticks
     assert abs(spread) < 5e-5
-    default_spread, _ = _feet_spread_m(ContactParams(), 1.0)
-    assert default_spread > 3e-4  # MuJoCo's soft friction: the feet spread ~0.5 mm per second
+    creeping_spread, _ = _feet_spread_m(ContactParams.creeping(), 1.0)
+    assert creeping_spread > 3e-4  # MuJoCo's soft friction: the feet spread ~0.5 mm per second
 
 
 def test_contact_params_refuse_impratio_without_elliptic_cone() -> None:
@@ -66,3 +67,5 @@ def test_contact_params_refuse_impratio_without_elliptic_cone() -> None:
         ContactParams(friction_cone="pyramidal", friction_impedance_ratio=100.0)
     with pytest.raises(ValueError):
         ContactParams(friction_impedance_ratio=0.5)
+    with pytest.raises(ValueError):
+        ContactParams(friction_cone="pyramidal")  # impratio 100 needs the elliptic cone
