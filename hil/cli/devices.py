@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from hil.cli.common import checked_config, connection_overrides, load_attach
 from hil.cli.exit_codes import ExitCode
 from hil.config import ConfigError
 from hil.output.progress import Progress
+from hil.output.strict_json import dumps
 
 SCAN_BAUDRATES = (3_000_000, 4_000_000, 1_000_000, 2_000_000, 57_600, 115_200, 9_600)
 
@@ -59,7 +59,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
             if devices and not args.baudrate:
                 break  # devices on one line share a baud: stop at the first that answers
     if args.json:
-        print(json.dumps({"port": args.port, "devices": found}))
+        print(dumps({"port": args.port, "devices": found}))
     elif not found:
         print(
             "no device answered (check power, wiring, the baud rate, and that no other program "
@@ -96,7 +96,7 @@ def cmd_reboot(args: argparse.Namespace) -> int:
         finally:
             chain.close()
     if args.json:
-        print(json.dumps({"rebooted": results}))
+        print(dumps({"rebooted": results}))
     else:
         for dxl_id, text in results.items():
             print(f"ID {dxl_id}: rebooted; hardware error status now: {text}; torque off")

@@ -18,7 +18,6 @@ top, every joint's under "joints"). Exit 2 for a directory that is not an identi
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -44,6 +43,7 @@ from hil.identify.runs import (
     read_identification_run,
     validation_start_of,
 )
+from hil.output.strict_json import dumps
 
 
 def configuration(path: Path | None, run: IdentificationRun) -> Config:
@@ -152,7 +152,7 @@ def _print_results(
     print(text)
     first = runs[0].out_dir
     (first / "identification.toml").write_text(text)
-    (first / "identification.json").write_text(json.dumps(records, indent=2) + "\n")
+    (first / "identification.json").write_text(dumps(records, indent=2) + "\n")
     return records
 
 
@@ -179,5 +179,5 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if args.json:
         first = next(iter(records.values()))
         out = {**first, "joints": records} if len(records) > 1 else first
-        print(json.dumps(out, allow_nan=False, default=str))
+        print(dumps(out))
     return ExitCode.OK

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from collections.abc import Callable, Iterator
@@ -16,6 +15,7 @@ from hil.cli.common import checked_config, connection_overrides, load_attach
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError
 from hil.loop import StopFlag
+from hil.output.strict_json import dumps
 from hil.wiring import Connection, make_bus
 
 MAX_RATE_HZ = 200.0
@@ -70,7 +70,7 @@ def _printer(args: argparse.Namespace, out: TextIO) -> Callable[[MonitorSample],
     if args.json:
 
         def print_json(sample: MonitorSample) -> None:
-            print(json.dumps(sample.record()), file=out, flush=True)
+            print(dumps(sample.record()), file=out, flush=True)
 
         return print_json
     live = out.isatty()

@@ -11,7 +11,6 @@ no Ray installed.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tomllib
 from pathlib import Path
@@ -19,6 +18,7 @@ from pathlib import Path
 from hil.cli.common import checked_config
 from hil.cli.exit_codes import ExitCode
 from hil.config import ConfigError
+from hil.output.strict_json import dumps
 
 
 def _list() -> int:
@@ -77,5 +77,5 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if outcome.interrupted or not outcome.complete:
         print("incomplete: rerun the same command to resume (finished runs are kept)")
     if args.json:
-        print(json.dumps(outcome.record(spec), default=str))
+        print(dumps(outcome.record(spec)))
     return ExitCode.OK if outcome.complete else ExitCode.FAILED

@@ -27,6 +27,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from hil.output.strict_json import dumps
+
 BOOL_COLUMNS = frozenset({"torque_enabled", "motor_valid", "link_valid"})
 INTEGER_COLUMNS = frozenset({"actuator_fault"})
 TIMING_FIELDS = ("read_s", "compute_s", "write_s", "log_s", "cycle_s")
@@ -142,19 +144,7 @@ def encode(message: dict[str, Any]) -> bytes:
 
 def encode_document(document: dict[str, Any]) -> bytes:
     """A whole document (meta, summary, an event): NaN and infinity as null, done properly."""
-    return json.dumps(_nulled(document), default=_plain).encode()
-
-
-def _nulled(value: Any) -> Any:
-    if isinstance(value, float) and (value != value or value in (float("inf"), float("-inf"))):
-        return None
-    if isinstance(value, dict):
-        return {str(k): _nulled(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_nulled(v) for v in value]
-    if hasattr(value, "tolist"):  # numpy scalars and arrays
-        return _nulled(value.tolist())
-    return value
+    return dumps(document).encode()
 
 
 def _plain(value: Any) -> Any:

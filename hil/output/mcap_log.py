@@ -12,7 +12,6 @@ and `Writer.add_message` for each; `hil bench log` measures it.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 from hil.output.channels import Channel
+from hil.output.strict_json import dumps
 
 MCAP_NAME = "run.mcap"
 # Closing a chunk (its message indexes are built in Python) costs time in proportion to its size,
@@ -58,9 +58,7 @@ class McapSink:
         self._writer.add_message(self._ids[channel_id], log_time_ns, data, log_time_ns, sequence)
 
     def metadata(self, name: str, document: dict[str, Any]) -> None:
-        self._writer.add_metadata(
-            name, {str(k): json.dumps(v, default=str) for k, v in document.items()}
-        )
+        self._writer.add_metadata(name, {str(k): dumps(v) for k, v in document.items()})
 
     def close(self) -> None:
         if self.closed:

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.output.records import RunEntry
+from hil.output.strict_json import dumps
 from hil.vocabulary import ControllerKind
 
 
@@ -300,7 +301,7 @@ def write_report(
         "relations": [{**asdict(r), "verdict": r.verdict} for r in relations],
         "relation_counts": counts,
     }
-    (root / "report.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    (root / "report.json").write_text(dumps(summary, indent=2) + "\n")
     return Report(table_text, markdown_path, summary, tuple(relations), tuple(figures))
 
 

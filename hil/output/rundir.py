@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from hil.output.runlog import read_log
+from hil.output.strict_json import dumps
 
 _JOINT_COLUMN = re.compile(r"^link_angle_rad\[(.+)\]$")
 
@@ -108,5 +109,5 @@ def add_to_summary(out_dir: Path, key: str, value: Any) -> None:
     summary = _read_json(path)
     summary[key] = value
     tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    tmp.write_text(dumps(summary, indent=2) + "\n")
     tmp.replace(path)

@@ -28,7 +28,6 @@ The per-tick path formats into preallocated lists: no dictionaries or arrays are
 from __future__ import annotations
 
 import csv
-import json
 import math
 import time
 from collections.abc import Sequence
@@ -39,6 +38,7 @@ import numpy as np
 
 from hil.output import channels as ch
 from hil.output.channels import Channel, ChannelSet, MessageSink, encode, encode_document
+from hil.output.strict_json import dumps, plain
 
 PER_JOINT_COLUMNS = (
     "reference_rad",
@@ -101,7 +101,7 @@ class RunLog:
         self.joint_names = tuple(joint_names)
         self.sensor_columns = tuple(sensor_columns)
         n = len(self.joint_names)
-        (self.dir / "meta.json").write_text(json.dumps(meta, indent=2, default=str) + "\n")
+        (self.dir / "meta.json").write_text(dumps(meta, indent=2) + "\n")
         joint_columns = [
             joint_column(c, name, n) for name in self.joint_names for c in PER_JOINT_COLUMNS
         ]
@@ -219,7 +219,7 @@ class RunLog:
 
     def event(self, time_s: float, kind: str, message: str, **fields: Any) -> None:
         record = {"time_s": round(time_s, 6), "kind": kind, "message": message, **fields}
-        self._events_file.write(json.dumps(record, default=str) + "\n")
+        self._events_file.write(dumps(record) + "\n")
         if self._sinks:
             self.publish(self.channels.events, time_s, encode_document(record))
 
@@ -227,7 +227,7 @@ class RunLog:
         """summary.json; then the summary is the last message: run.mcap is finished."""
         path = self.dir / "summary.json"
         tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
+        tmp.write_text(dumps(summary, indent=2) + "\n")
         tmp.replace(path)
         if self._sinks:
             self.publish(
@@ -235,7 +235,7 @@ class RunLog:
                 encode_document(summary),
             )  # fmt: skip
         if self.mcap is not None:
-            self.mcap.metadata("run_summary", json.loads(json.dumps(summary, default=json_default)))
+            self.mcap.metadata("run_summary", plain(summary))
         self.finish_sinks()
 
     def finish_sinks(self) -> None:
@@ -258,15 +258,6 @@ class RunLog:
     def __exit__(self, *exc_info: object) -> None:
         self.close()
         self.finish_sinks()
-
-
-def json_default(value: Any) -> Any:
-    """numpy values and anything else json cannot take, for json.dumps(default=...)."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)
 
 
 def read_log(path: Path) -> dict[str, np.ndarray]:

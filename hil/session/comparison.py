@@ -21,7 +21,6 @@ stops the whole plan.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -47,6 +46,7 @@ from hil.output.progress import Progress
 from hil.output.records import RunEntry
 from hil.output.report import Report, ReportContent, write_report
 from hil.output.rundir import load_run, timestamp, unique_dir
+from hil.output.strict_json import dumps
 from hil.session.session import Session
 from hil.vocabulary import ControllerChoice, ControllerKind, Termination
 from sim_backend.scenario import FaultEvent
@@ -160,7 +160,7 @@ def run_comparison(
     print(report.table_text)
     print(f"report: {report.markdown_path}")
     if session.json_output:
-        print(json.dumps(report.summary, default=str))
+        print(dumps(report.summary))
     if incomplete is not None:
         print(f"comparison incomplete: {incomplete}")
     return ComparisonOutcome(root, report, incomplete)

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import enum
-import json
 import platform
 import sys
 import time
@@ -34,6 +33,7 @@ from hil.output.plots import plot_run
 from hil.output.progress import Progress
 from hil.output.records import RunResult
 from hil.output.rundir import add_to_summary, load_run, timestamp, unique_dir
+from hil.output.strict_json import dumps
 from hil.output.versions import package_versions
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
@@ -312,7 +312,7 @@ class Session:
                 "out_dir": str(result.out_dir),
                 **result.metrics,
             }
-            print(json.dumps(record, default=str))
+            print(dumps(record))
 
 
 def _fmt(value: Any) -> str:

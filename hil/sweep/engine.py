@@ -15,7 +15,6 @@ Ray is an optional dependency (`pip install -e '.[sweep]'`); without it `RayMiss
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import os
 import signal
@@ -28,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.config import Config
+from hil.output.strict_json import dumps
 from hil.sweep.maps import write_maps
 from hil.sweep.processes import adopt_orphans, descendants, shutdown_ray_started_here
 from hil.sweep.relations import PointRelation, RelationFraction, fractions, point_relations
@@ -243,7 +243,7 @@ def write_findings(spec: SweepSpec, rows: list[dict[str, Any]], outcome: SweepOu
             title=spec.title,
         )
     summary = outcome.record(spec)
-    (outcome.out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (outcome.out_dir / "summary.json").write_text(dumps(summary, indent=2) + "\n")
 
 
 def _write_relations(

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.experiments import EXPERIMENTS
+from hil.output.strict_json import dumps
 
 RESULTS_NAME = "results.csv"
 FIXED_HEAD = ("run_id", "point_id")
@@ -98,7 +99,7 @@ class ResultsTable:
     def append(self, row: dict[str, Any]) -> None:
         """Write one finished run's row now (flushed and synced: Ctrl-C loses none)."""
         metrics = row.get("metrics", {})
-        values = {**metrics, **row, "metrics_json": json.dumps(metrics, default=str)}
+        values = {**metrics, **row, "metrics_json": dumps(metrics)}
         buffer = io.StringIO()
         csv.writer(buffer, lineterminator="\n").writerow(
             [_cell(values.get(name)) for name in self.columns]

@@ -8,7 +8,6 @@ invalid, comes back as a failed row with the error, never as nothing.
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import time
@@ -18,6 +17,7 @@ from typing import Any
 
 from hil.config import config_from_record
 from hil.experiments import get_experiment
+from hil.output.strict_json import plain
 from hil.session import Session, Setup
 from hil.sweep.spec import SweepSetup, Task, config_at
 
@@ -85,5 +85,5 @@ def run_task(task: Task, root: str) -> dict[str, Any]:
         error="" if result.ok else result.ending.detail,
         wall_time_s=time.perf_counter() - started,
         out_dir=str(out_dir) if kept else "",
-        metrics=json.loads(json.dumps(result.metrics, default=str)),
+        metrics=plain(result.metrics),
     )
