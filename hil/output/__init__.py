@@ -5,7 +5,7 @@ canopen), so reading and plotting runs works anywhere.
 """
 
 from hil.output.records import RunEntry, RunResult
-from hil.output.rundir import RunData, load_run, timestamp, unique_dir
+from hil.output.rundir import RunData, create_run_dir, load_run, timestamp, unique_dir
 from hil.output.runlog import PER_JOINT_COLUMNS, RunLog, read_log
 
 __all__ = [
@@ -14,6 +14,7 @@ __all__ = [
     "RunEntry",
     "RunLog",
     "RunResult",
+    "create_run_dir",
     "load_run",
     "read_log",
     "timestamp",

@@ -23,12 +23,30 @@ def timestamp() -> str:
 
 
 def unique_dir(path: Path) -> Path:
-    """`path`, or `path-2`, `path-3`, ... whichever does not exist yet."""
+    """`path`, or `path-2`, `path-3`, ... whichever does not exist yet (not created: for a run
+    directory use `create_run_dir`, which two processes cannot both get)."""
     candidate, n = path, 1
     while candidate.exists():
         n += 1
         candidate = path.with_name(f"{path.name}-{n}")
     return candidate
+
+
+def create_run_dir(root: Path, name: str) -> Path:
+    """A new, empty directory `root/name` (or `name-2`, `name-3`, ...), created exclusively:
+    `mkdir` without exist_ok either creates it or fails, so two runs started in the same second
+    into the same root never share one, whatever the clock says."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    n = 1
+    while True:
+        candidate = root / (name if n == 1 else f"{name}-{n}")
+        try:
+            candidate.mkdir()
+        except FileExistsError:
+            n += 1
+            continue
+        return candidate
 
 
 @dataclass(frozen=True)

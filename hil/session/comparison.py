@@ -45,7 +45,7 @@ from hil.output.plots import ComparisonRun
 from hil.output.progress import Progress
 from hil.output.records import RunEntry
 from hil.output.report import Report, ReportContent, write_report
-from hil.output.rundir import load_run, timestamp, unique_dir
+from hil.output.rundir import create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
 from hil.session.session import Session
 from hil.vocabulary import ControllerChoice, ControllerKind, Termination
@@ -131,7 +131,7 @@ def run_comparison(
     name = "humanoid-comparison" if humanoid else "comparison"
     if named is not None:
         name = f"{named}-comparison"
-    root = unique_dir(session.out_root / f"{timestamp()}-{name}")
+    root = create_run_dir(session.out_root, f"{timestamp()}-{name}")
     if named == "walking":
         plan = walking_plan(base.controller.kdist)
     elif humanoid:

@@ -32,7 +32,7 @@ from hil.output.channels import MessageSink
 from hil.output.plots import plot_run
 from hil.output.progress import Progress
 from hil.output.records import RunResult
-from hil.output.rundir import add_to_summary, load_run, timestamp, unique_dir
+from hil.output.rundir import add_to_summary, create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
 from hil.output.versions import package_versions
 from hil.vocabulary import ControllerChoice, EmulatorClock
@@ -200,9 +200,10 @@ class Session:
         stop: StopFlag | None = None,
     ) -> RunResult:
         choice = self.labelled(choice)
-        if out_dir is None:
-            out_dir = unique_dir(
-                self.out_root / f"{timestamp()}-{experiment.name}-{choice.dir_name}"
+        created = out_dir is None
+        if out_dir is None:  # its own, created now: a run started at the same time gets another
+            out_dir = create_run_dir(
+                self.out_root, f"{timestamp()}-{experiment.name}-{choice.dir_name}"
             )
         request = RunRequest(
             experiment=experiment,
@@ -221,10 +222,16 @@ class Session:
             f"hil run: {experiment.name} with {choice.label} on the {self.description} -> {out_dir}"
         )
         self.emulator_fault_counts = {}
-        with self.bus(experiment, faults, clock) as (bus, connection):
-            meta = self._meta(experiment, choice, faults, overruns, clock, connection)
-            meta["bus"] = bus.describe()
-            result = run_experiment(self.config, request, bus, clock, meta, stop=stop)
+        try:
+            with self.bus(experiment, faults, clock) as (bus, connection):
+                meta = self._meta(experiment, choice, faults, overruns, clock, connection)
+                meta["bus"] = bus.describe()
+                result = run_experiment(self.config, request, bus, clock, meta, stop=stop)
+        except BaseException:
+            if created:  # the run never began (the emulator did not start): no empty directory
+                with contextlib.suppress(OSError):
+                    out_dir.rmdir()
+            raise
         if faults:
             self._record_fault_counts(out_dir, faults)
         if self.plots and result.ticks > 1:
