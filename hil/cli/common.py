@@ -52,9 +52,21 @@ def connection_overrides(args: argparse.Namespace) -> ConnectionOverrides:
 
 def load_attach(text: str) -> dict[str, Any]:
     """--attach: the JSON line `hil emulate` printed, or a file whose first line it is."""
-    path = Path(text)
-    if path.exists():
-        text = path.read_text().splitlines()[0]
+    text = text.strip()
+    if not text.startswith("{"):  # not the line itself: a file holding it
+        path = Path(text).expanduser()
+        if not path.is_file():
+            raise ConfigError(
+                f"--attach {text}: no such file (give the JSON line `hil emulate` printed, or "
+                "a file holding it)"
+            )
+        try:
+            lines = path.read_text().splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"--attach {text}: cannot read it: {exc}") from None
+        if not lines:
+            raise ConfigError(f"--attach {text}: the file is empty")
+        text = lines[0]
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

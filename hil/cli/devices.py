@@ -18,6 +18,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
     from drivers.dynamixel import ScanProgress, scan
     from drivers.joint_bus import BusError
 
+    if args.baudrate is not None and args.baudrate <= 0:
+        raise ConfigError(f"--baudrate: must be a baud rate > 0 bit/s, got {args.baudrate}")
     bauds = (args.baudrate,) if args.baudrate else SCAN_BAUDRATES
     found: list[dict] = []
     # A bar over the baud rates (a one-by-one PING of every ID moves it within one), on a

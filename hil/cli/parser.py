@@ -13,6 +13,16 @@ from hil.session.comparison import NAMED_COMPARISONS
 BENCH_TARGETS = ("bus", "loop", "pacing", "soak", "log", "sweep")
 
 
+def attach_text(text: str) -> str:
+    """--attach: refused at once when it names nothing (an empty --attach would otherwise
+    read as no --attach: the configuration's hardware ports, or the embedded emulator)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "names nothing: give the JSON line `hil emulate` printed, or a file holding it"
+        )
+    return text
+
+
 def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("connection overrides (point a config at other ports)")
     group.add_argument("--port", help="Dynamixel serial port (overrides [[dynamixel]] port)")
@@ -21,6 +31,7 @@ def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--can-channel", help="python-can channel, e.g. can0 or /dev/pts/4")
     group.add_argument(
         "--attach",
+        type=attach_text,
         metavar="JSON",
         help="the first line `hil emulate` printed (or a file holding it): use its ports",
     )

@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import argparse
-import math
+import os
+import shutil
 import sys
+import tempfile
+from pathlib import Path
 
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError, robot_of
 from hil.experiments import Experiment, get_experiment
-from hil.loop import StopFlag
+from hil.loop import StopFlag, duration_problem
 from hil.output.channels import MessageSink
+from hil.output.rundir import estimated_record_bytes
 from hil.safety import ReferenceOutsideLimits
 from hil.session import Session, SessionError, Setup, run_comparison
 from hil.session.comparison import NAMED_COMPARISONS
@@ -73,8 +77,8 @@ def _check_combinations(args: argparse.Namespace, embedded: bool, faults: tuple)
             "--inject of an emulator fault needs the embedded emulator (no --config, or "
             "--emulate); for a separate `hil emulate`, pass --inject to it"
         )
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise ConfigError(f"--duration: must be a finite time > 0 s, got {args.duration}")
+    if args.duration is not None and (problem := duration_problem(args.duration)) is not None:
+        raise ConfigError(f"--duration: {problem}")
 
 
 def _live(args: argparse.Namespace) -> tuple[MessageSink, ...]:
@@ -125,13 +129,64 @@ def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) ->
     """The controller of a single run; an open-loop experiment (identify) has none: the
     actuator's own position control follows its goals, which is what `pid` names."""
     if not experiment.open_loop:
-        return ControllerChoice(args.controller or config.controller.name, config.controller.kdist)
+        name = args.controller or config.controller.name
+        choice = ControllerChoice(name, config.controller.kdist)
+        _check_choice(args, config, choice)
+        return choice
     if args.controller not in (None, str(ControllerKind.PID)) or args.kdist is not None:
         raise ConfigError(
             f"{experiment.name} runs open loop (its own goals, no controller): drop --controller "
             "and --kdist"
         )
     return ControllerChoice(ControllerKind.PID)
+
+
+def _check_choice(args: argparse.Namespace, config: Config, choice: ControllerChoice) -> None:
+    """What the controller would ignore, or the supervisor refuse at the first tick with torque
+    on (gain_out_of_range), judged now."""
+    kind = choice.kind
+    if args.kdist is not None and not kind.has_dob:
+        raise ConfigError(
+            f"--kdist is the DOB's gain: {kind} has no DOB (give a controller with one, e.g. "
+            f"--controller {ControllerKind.GC_LQR_DOB}, or drop --kdist)"
+        )
+    if args.composition is not None and not kind.has_lqr:
+        raise ConfigError(
+            f"--composition is a reading of (25), the LQR's composition: {kind} has no LQR"
+        )
+    max_kdist = config.safety.max_kdist
+    if kind.has_dob and choice.kdist > max_kdist:
+        given = "--kdist" if args.kdist is not None else f"{config.source} [controller] kdist"
+        raise ConfigError(
+            f"{given} = {choice.kdist:g} is above [safety] max_kdist = {max_kdist:g}, beyond the "
+            "paper's gains and the closed-loop analysis (docs/safety.md): raise max_kdist "
+            "knowingly to run it"
+        )
+
+
+def _check_out(args: argparse.Namespace, config: Config) -> None:
+    """--out: a directory this process can create run directories in, with room for the run's
+    record: refused now, before a run directory is named."""
+    out: Path = args.out
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out}: is a file, not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        os.rmdir(tempfile.mkdtemp(prefix=".hil-write-check-", dir=out))
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot write run directories there: {exc}") from None
+    if args.experiment is None:
+        return
+    duration = args.duration or get_experiment(args.experiment).duration_s
+    ticks = int(duration * config.loop.rate_hz) + config.loop.stop_cycles
+    need = estimated_record_bytes(ticks, len(config.joints), mcap=not args.no_mcap)
+    free = shutil.disk_usage(out).free
+    if need > free:
+        raise ConfigError(
+            f"--out {out}: the run's record takes about {need / 1e9:.1f} GB, more than the "
+            f"{free / 1e9:.1f} GB free there (--no-mcap writes about a fifth as much on the "
+            "testbed; or shorten --duration)"
+        )
 
 
 def _named_comparison(args: argparse.Namespace) -> str | None:
@@ -154,6 +209,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     embedded = (args.config is None or args.emulate) and not (args.attach and args.config is None)
     _check_combinations(args, embedded, faults)
     _check_timeline(args, faults, overruns)
+    if args.experiment is not None:
+        _choice(args, config, get_experiment(args.experiment))
+    _check_out(args, config)
     setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
     sinks = _live(args)
     try:

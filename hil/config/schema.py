@@ -11,6 +11,7 @@ Every number must be finite; bools are not numbers; unknown keys are refused.
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -70,7 +71,7 @@ class CanSection(Section):
     name: str = Field("can", min_length=1)
     interface: str = Field("socketcan", min_length=1)
     channel: str = Field("can0", min_length=1)
-    bitrate: int = Field(1_000_000, ge=0)  # 0: leave the adapter's
+    bitrate: int = Field(1_000_000, gt=0)  # bit/s (python-can's socketcan ignores it)
     options: dict[str, Any] = Field(default_factory=dict)  # extra can.Bus(...) keyword args
 
     def bus_kwargs(self) -> dict[str, Any]:
@@ -301,6 +302,25 @@ class EmulatorSection(Section):
     # `latency_timer_ms`, as if set so; 16 rehearses an FTDI adapter left at its default).
     usb_latency_timer_ms: float | None = Field(None, ge=0, le=255)
 
+    @field_validator("plant", "servo", "sensor_noise")
+    @classmethod
+    def _finite(cls, value: dict[str, Any]) -> dict[str, Any]:
+        _finite_numbers(value, "")
+        return value
+
+
+def _finite_numbers(value: Any, where: str) -> None:
+    """Every number in a table of overrides finite (the emulator's own checks skip some: a NaN
+    mass would only show once the plant runs), named by its key."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _finite_numbers(item, f"{where}.{key}" if where else str(key))
+    elif isinstance(value, list | tuple):
+        for index, item in enumerate(value):
+            _finite_numbers(item, f"{where}[{index}]")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{where}: must be a finite number, got {value}")
+
 
 class ConfigFile(Section):
     """A whole configuration file. `[dynamixel]`/`[can]` may be one table or an array of them."""
@@ -322,6 +342,17 @@ class ConfigFile(Section):
     @classmethod
     def _one_or_many(cls, value: Any) -> Any:
         return [value] if isinstance(value, dict) else value
+
+    @model_validator(mode="after")
+    def _dob_filter_below_nyquist(self) -> ConfigFile:
+        # a sampled first-order filter has no cut-off above half the sampling rate
+        cutoff, nyquist = self.controller.dob_cutoff_hz, self.loop.rate_hz / 2.0
+        if cutoff is not None and cutoff >= nyquist:
+            raise ValueError(
+                f"[controller] dob_cutoff_hz ({cutoff:g} Hz) must be below the Nyquist frequency "
+                f"of [loop] rate_hz ({self.loop.rate_hz:g} Hz): {nyquist:g} Hz"
+            )
+        return self
 
     @model_validator(mode="after")
     def _consistent(self) -> ConfigFile:

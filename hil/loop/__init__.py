@@ -14,7 +14,7 @@ runner.py              the loop itself (`Loop`, `run_experiment`)
 from hil.loop.clock import LockstepClock, LoopClock, Tick, WallClock
 from hil.loop.controller_factory import build_controller, joint_params
 from hil.loop.homing import HomingPlan, plan_homing
-from hil.loop.request import RunRequest, StopFlag
+from hil.loop.request import MAX_RUN_DURATION_S, RunRequest, StopFlag, duration_problem
 from hil.loop.robot_model import HumanoidLegs, RobotModel, SingleLinks, robot_model
 from hil.loop.runner import LOST_BUS_ERRORS, Loop, run_experiment
 from hil.loop.start_gate import StartRefused
@@ -22,6 +22,7 @@ from hil.loop.timeline import Phase, Timeline
 
 __all__ = [
     "LOST_BUS_ERRORS",
+    "MAX_RUN_DURATION_S",
     "HomingPlan",
     "HumanoidLegs",
     "LockstepClock",
@@ -37,6 +38,7 @@ __all__ = [
     "Timeline",
     "WallClock",
     "build_controller",
+    "duration_problem",
     "joint_params",
     "plan_homing",
     "robot_model",

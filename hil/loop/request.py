@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import signal
 import threading
 from collections.abc import Callable
@@ -12,6 +13,25 @@ from typing import Any
 from hil.experiments import Experiment
 from hil.output.channels import MessageSink
 from hil.vocabulary import ControllerChoice
+
+# The longest run `hil run` and a sweep accept: a day. A run's memory does not grow with its
+# length (the loop computes its reference in chunks), but its record does, ~19 GB a day for
+# the testbed with run.mcap (hil.output.rundir.estimated_record_bytes). A longer trial is
+# several runs.
+MAX_RUN_DURATION_S = 24 * 3600.0
+
+
+def duration_problem(duration_s: float) -> str | None:
+    """Why a run cannot last `duration_s` (None: it can): what `hil run --duration` and a
+    sweep's `duration_s` are judged by before anything starts."""
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        return f"must be a finite time > 0 s, got {duration_s}"
+    if duration_s > MAX_RUN_DURATION_S:
+        return (
+            f"{duration_s:g} s is longer than a run may be ({MAX_RUN_DURATION_S:g} s, a day: "
+            "the testbed's record alone grows ~19 GB a day); make it several runs"
+        )
+    return None
 
 
 @dataclass(frozen=True)

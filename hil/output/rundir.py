@@ -49,6 +49,18 @@ def create_run_dir(root: Path, name: str) -> Path:
         return candidate
 
 
+# What a run's record takes per tick (log.csv + timing.csv, and run.mcap), measured on 2 s
+# in-process runs: the testbed (1 joint, a force sensor) 192 B without run.mcap, 1095 B with
+# it; DYROS-JET's legs (12 joints, two foot sensors) 1563 B and 4795 B. A line through the two.
+_RECORD_BYTES_PER_TICK = {False: (67.0, 125.0), True: (759.0, 336.0)}  # (base, per joint)
+
+
+def estimated_record_bytes(ticks: int, n_joints: int, mcap: bool) -> float:
+    """About how many bytes a run of `ticks` ticks writes (see _RECORD_BYTES_PER_TICK)."""
+    base, per_joint = _RECORD_BYTES_PER_TICK[mcap]
+    return ticks * (base + per_joint * n_joints)
+
+
 @dataclass(frozen=True)
 class RunData:
     """What a run directory holds (see hil.output.runlog): log columns, meta, summary, events."""

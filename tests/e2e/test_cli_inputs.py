@@ -49,6 +49,20 @@ BAD_CONFIGS = {
         _edited('on_bus_error = "torque_off"', 'on_bus_error = "panic"'),
         "on_bus_error",
     ),
+    # values that validated once but failed after the bus was open (exit 1): now at load
+    "CAN bitrate 0": (_edited("bitrate = 1000000", "bitrate = 0"), "bitrate"),
+    "a NaN in the emulated plant": (
+        _edited("# plant = { load_mass_kg = 3.0 }", "plant = { load_mass_kg = nan }"),
+        "load_mass_kg",
+    ),
+    "an encoder offset no encoder can read": (
+        _edited("encoder_offset_rad = 0.0 ", "encoder_offset_rad = 1e6 "),
+        "encoder_offset_rad",
+    ),
+    "a DOB cut-off above the Nyquist frequency": (
+        _edited("dob_cutoff_hz = 11.4 ", "dob_cutoff_hz = 150.0 "),
+        "dob_cutoff_hz",
+    ),
     "trajectory beyond the limits": (
         # the contact experiment's reference goes down to -0.3 rad
         _edited("min_angle_rad = -0.8", "min_angle_rad = -0.25"),
@@ -61,6 +75,11 @@ BAD_ARGUMENTS = {
     "unknown fault": (["--inject", "meteor@1"], "unknown fault"),
     "bad fault time": (["--inject", "overrun@soon"], "overrun@START"),
     "unknown controller": (["--controller", "lqr+magic"], "invalid choice"),
+    # judged before the first byte, not after torque is on
+    "a duration no run can have": (["--duration", "1e9"], "--duration"),
+    "kdist above max_kdist": (["--kdist", "5"], "max_kdist"),
+    "kdist for a controller without a DOB": (["--controller", "pid", "--kdist", "0.5"], "--kdist"),
+    "an attach that names nothing": (["--attach", ""], "--attach"),
 }
 
 
