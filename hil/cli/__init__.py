@@ -14,7 +14,8 @@
     hil config                 print the sample configuration file
 
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
-arguments or bad configuration (nothing was sent to any device).
+arguments or bad configuration (nothing was sent to any device), 3 torque could not be turned
+off at the end of a run (the actuators may still hold with torque on).
 """
 
 from __future__ import annotations

@@ -255,6 +255,8 @@ def _run(
                 stop=stop,
                 named=named,
             )
+            if outcome.torque_not_off:
+                return ExitCode.TORQUE_NOT_OFF
             return ExitCode.OK if outcome.incomplete is None else ExitCode.FAILED
         experiment = get_experiment(args.experiment)
         choice = _choice(args, config, experiment)
@@ -267,6 +269,8 @@ def _run(
             reboot_first=args.reboot_first,
             stop=stop,
         )
+        if result.torque_off_failed:
+            return ExitCode.TORQUE_NOT_OFF
         return ExitCode.OK if result.ok else ExitCode.FAILED
     except SessionError as exc:
         print(f"hil run: {exc}", file=sys.stderr)

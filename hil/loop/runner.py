@@ -145,6 +145,7 @@ class Loop:
         self.current_limits = np.full(n, math.nan)
         self.ending = RunEnding(Termination.COMPLETED)
         self.opened = False
+        self.torque_off_failed = False  # the exit path's torque off was not taken
         self.ticks_done = 0
         self._hold_goal = np.full(n, math.nan)
         self._last_goal = np.full(n, math.nan)
@@ -500,6 +501,7 @@ class Loop:
         if self.config.safety.on_exit is Reaction.TORQUE_OFF:
             ok = self._disable(time_s, "exit")
             notes.append("torque off" if ok else "torque off FAILED (see events.jsonl)")
+            self.torque_off_failed = not ok
         else:
             notes.append(f"torque left {'on' if self.torque.on else 'off'} (on_exit = hold)")
             self.log.event(time_s, "exit_hold", "exit: torque left as it was (on_exit = hold)")
@@ -545,6 +547,8 @@ class Loop:
             list(self.supervisor.events),
             self.ticks_done,
             wall_time_s,
+            tuple(exit_notes),
+            self.torque_off_failed,
         )
 
     def _metrics(self) -> dict[str, Any]:

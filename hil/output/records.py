@@ -19,6 +19,10 @@ class RunResult:
     safety_events: list[SafetyEvent] = field(default_factory=list)
     ticks: int = 0
     wall_time_s: float = 0.0
+    exit_notes: tuple[str, ...] = ()  # what the exit path did (summary.json "exit")
+    # on_exit asked for torque off and the actuators did not take it (a lost bus): they may
+    # still hold their last goal with torque on
+    torque_off_failed: bool = False
 
     @property
     def ok(self) -> bool:

@@ -69,6 +69,8 @@ class ComparisonOutcome:
     root: Path
     report: Report
     incomplete: str | None  # why the comparison is incomplete, None when every run ran its course
+    # the runs whose exit path could not turn torque off (a lost bus)
+    torque_not_off: tuple[str, ...] = ()
 
 
 def humanoid_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
@@ -163,7 +165,10 @@ def run_comparison(
         print(dumps(report.summary))
     if incomplete is not None:
         print(f"comparison incomplete: {incomplete}")
-    return ComparisonOutcome(root, report, incomplete)
+    torque_not_off = tuple(
+        f"{e.experiment} / {e.choice.label}" for e in entries if e.result.torque_off_failed
+    )
+    return ComparisonOutcome(root, report, incomplete, torque_not_off)
 
 
 def _run_plan(

@@ -232,6 +232,8 @@ class Session:
                 with contextlib.suppress(OSError):
                     out_dir.rmdir()
             raise
+        if result.torque_off_failed:
+            warn_torque_not_off(result)
         if faults:
             self._record_fault_counts(out_dir, faults)
         if self.plots and result.ticks > 1:
@@ -307,9 +309,10 @@ class Session:
             print(f"  {shown}")
         for event in result.safety_events:
             print(f"  safety: t = {event.time_s:.3f} s {event.cause} -> {event.action}")
+        run_time_s = result.ticks * self.config.loop.period_s
         print(
-            f"  log: {result.out_dir / 'log.csv'}  "
-            f"({result.ticks} ticks, {result.wall_time_s:.1f} s)"
+            f"  log: {result.out_dir / 'log.csv'}  ({result.ticks} ticks = {run_time_s:.2f} s "
+            f"of run time, in {result.wall_time_s:.1f} s on the wall clock)"
         )
         if self.json_output:
             record = {
@@ -317,9 +320,24 @@ class Session:
                 "controller": choice.label,
                 "termination": result.ending.text,
                 "out_dir": str(result.out_dir),
+                "exit": list(result.exit_notes),
+                "torque_off_failed": result.torque_off_failed,
                 **result.metrics,
             }
             print(dumps(record))
+
+
+def warn_torque_not_off(result: RunResult) -> None:
+    """Said on stderr whatever else is quiet: the actuators may still hold with torque on."""
+    print(
+        f"hil run: WARNING: TORQUE COULD NOT BE TURNED OFF at the end of the run "
+        f"({result.ending}; {'; '.join(result.exit_notes)}). The actuators did not take "
+        "Torque Enable = 0: they may still hold their last goal with torque on. Cut their "
+        f"power (emergency stop) before going near the robot. Details: "
+        f"{result.out_dir / 'events.jsonl'}",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _fmt(value: Any) -> str:

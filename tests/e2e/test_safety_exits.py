@@ -178,3 +178,41 @@ def _wait_until_a_run_dir(out: Path, process: subprocess.Popen) -> None:
         assert process.poll() is None, process.stderr.read() if process.stderr else ""
         assert time.monotonic() < deadline, "hil run did not start"
         time.sleep(0.05)
+
+
+@pytest.mark.timeout(120)
+def test_torque_that_could_not_be_turned_off_is_said_loudly_and_has_its_own_exit_status(
+    tmp_path: Path,
+) -> None:
+    """`hil run --attach ... --json` while its `hil emulate` is killed (the bus is lost: torque
+    cannot be turned off): stderr says so loudly, the --json line carries it, and the exit
+    status is its own (README, exit-status table), not the 1 of an ordinary failed run."""
+    from hil.cli.exit_codes import ExitCode
+    from hil.output.strict_json import strict_loads
+
+    config = load_config()
+    with emulated_testbed(config, "impact") as emulator:
+        out = tmp_path / "runs"
+        command = [
+            sys.executable, "-m", "hil", "run", "impact", "--controller", "gc+lqr+dob",
+            "--duration", "60", "--json", "--no-plots", "--attach",
+            json.dumps(emulator.endpoints), "--out", str(out),
+        ]  # fmt: skip
+        process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        try:
+            _wait_until_a_run_dir(out, process)
+            (run_dir,) = out.iterdir()
+            _wait_for_rows(run_dir / "log.csv", 100, process, timeout_s=30)
+            emulator.process.kill()
+            stdout, stderr = process.communicate(timeout=60)
+        finally:
+            if process.poll() is None:
+                process.kill()
+    assert process.returncode == ExitCode.TORQUE_NOT_OFF == 3, stderr
+    assert "TORQUE COULD NOT BE TURNED OFF" in stderr
+    line = strict_loads(stdout.strip().splitlines()[-1])
+    assert line["torque_off_failed"] is True
+    assert any("torque off FAILED" in note for note in line["exit"])
+    assert load_run(run_dir).summary["exit"] == line["exit"]
