@@ -57,6 +57,10 @@ from hil.vocabulary import Reaction, RunEnding, Termination
 from hil.wiring.hardware import configured_current_limits_a
 
 DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
+# The reference is computed this many ticks ahead (60 s: all of a usual experiment at tick 0),
+# then one tick at a time in a ring of this many rows: a run's memory does not grow with its
+# planned duration, and no later tick computes more than the rows the clock skipped.
+REFERENCE_AHEAD_TICKS = 12_000
 # What a bus raises when it is lost: the JointBus contract says BusError, but a port that
 # vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
 # (serial.SerialException is an OSError).
@@ -140,7 +144,8 @@ class Loop:
         )
         self._kept: tuple[tuple, tuple] | None = None  # the last tick's rows, not yet written
         self.homing: HomingPlan | None = None
-        self.references = np.zeros((0, n))
+        self.references = np.zeros((0, n))  # a ring: tick k's row is at k % len
+        self._reference_filled = 0  # the first tick whose row is not in the ring yet
         self.torque = _TorqueState()
         self.current_limits = np.full(n, math.nan)
         self.ending = RunEnding(Termination.COMPLETED)
@@ -219,7 +224,9 @@ class Loop:
         if k == 0:
             sample = self._start(sample)
         self._watch(tick, sample)
-        reference = self.references[k]
+        if k >= self._reference_filled:  # (the clock skipped more ticks than the ring holds)
+            self._reference_ahead(k - 1)
+        reference = self.references[k % len(self.references)]
         proposed = self._propose(k, sample, reference)
         goal = self.supervisor.command(proposed, sample) if self.torque.on else None
         phase = self.timeline.phase(k)
@@ -232,6 +239,7 @@ class Loop:
         t_done = time.perf_counter()
         timing = (k, t_compute - t_read - log_s, t_done - t_compute, 0.0, log_s, tick.time_s)
         self._keep_record(tick, sample, reference, goal, phase, timing)
+        self._reference_ahead(k)
         on_progress = self.request.on_progress
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
             on_progress(tick.time_s, self.timeline.end * self.period)
@@ -284,19 +292,28 @@ class Loop:
         if self.homing is not None:
             self.timeline = self.timeline.with_homing(self.homing.ticks(self.period))
             self.log.event(0.0, "homing", self.homing.describe())
-        self.references = self._reference_table()
+        ahead = min(self.timeline.end, REFERENCE_AHEAD_TICKS)
+        self.references = np.empty((ahead, self.n))
+        self._reference_filled = 0
+        self._reference_ahead(-1)
         return sample
 
-    def _reference_table(self) -> np.ndarray:
-        """The link reference of every tick of the run (ticks x joints)."""
+    def _reference_ahead(self, k: int) -> None:
+        """Fill the ring up to tick k + its length - 1: the slots of ticks up to k, whose rows
+        are written (tick k's row is kept for the next tick's log: not overwritten)."""
+        ring = self.references
+        stop = min(self.timeline.end, k + len(ring))
+        while self._reference_filled < stop:
+            tick = self._reference_filled
+            ring[tick % len(ring)] = self._reference_at(tick)
+            self._reference_filled = tick + 1
+
+    def _reference_at(self, k: int) -> float | np.ndarray:
+        """The link reference of tick k (re-homing first, then the experiment's)."""
         timeline = self.timeline
-        table = np.empty((timeline.end, self.n))
-        for k in range(timeline.end):
-            if self.homing is not None and k < timeline.hold_ticks + timeline.homing_ticks:
-                table[k] = self.homing.reference((k - timeline.hold_ticks) * self.period)
-            else:
-                table[k] = self.experiment.reference(timeline.experiment_time_s(k))
-        return table
+        if self.homing is not None and k < timeline.hold_ticks + timeline.homing_ticks:
+            return self.homing.reference((k - timeline.hold_ticks) * self.period)
+        return self.experiment.reference(timeline.experiment_time_s(k))
 
     # --- each tick ---------------------------------------------------------------------------
     def _watch(self, tick: Tick, sample: JointSample) -> None:
