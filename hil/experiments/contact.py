@@ -16,6 +16,8 @@ Metrics (from the run's log, loop time):
     trip_time_after_contact_s   first overload report minus contact_time_s (None without a trip)
     force_drift_n_per_s         slope of a line fitted to the force from DRIFT_AFTER_CONTACT_S
                                 after contact to the end (or the trip): a force that creeps
+A run without contact (one that ends before the reference reaches the block) has no mean
+contact force and no drift: None, with the reason under `unmeasured`.
 """
 
 from __future__ import annotations
@@ -38,13 +40,14 @@ from hil.output.plots import (
     overload_time_s,
     save_figure,
 )
-from hil.output.records import RunEntry
+from hil.output.records import UNMEASURED, RunEntry
 from hil.output.report import Column, Missing, Relation, check, find, metric, number
 from hil.output.rundir import RunData
 from hil.vocabulary import ControllerChoice, ControllerKind
 
 CONTACT_THRESHOLD_N = 1.0
 DRIFT_AFTER_CONTACT_S = 2.0  # past the reference's ramp (it ends 0.75 s after contact)
+DRIFT_MIN_SAMPLES = 100  # half a second at 200 Hz
 
 # --- the paper's figures (Kim et al., ICRA 2018, Sec. IV-B, Fig. 5) -----------------------------
 PAPER_DOB_CONTACT_FORCE_N = (20.0, 40.0)  # "compliant to a small contact force (20N~40N)"
@@ -68,12 +71,16 @@ def overload_trip_s(run: RunData) -> float | None:
 
 def _drift(
     time: np.ndarray, force: np.ndarray, in_contact: np.ndarray, contact: float | None
-) -> float | None:
+) -> float | str:
+    """The force's slope late in the contact, or why there is none."""
     if contact is None:
-        return None
+        return "no contact"
     late = in_contact & (time >= contact + DRIFT_AFTER_CONTACT_S) & np.isfinite(force)
-    if np.count_nonzero(late) < 100:  # half a second at 200 Hz
-        return None
+    if np.count_nonzero(late) < DRIFT_MIN_SAMPLES:
+        return (
+            f"needs {DRIFT_MIN_SAMPLES} readings in contact from {DRIFT_AFTER_CONTACT_S:g} s "
+            f"after it (the run has {np.count_nonzero(late)})"
+        )
     return float(np.polyfit(time[late], force[late], 1)[0])
 
 
@@ -86,18 +93,42 @@ class ContactExperiment(TestbedExperiment):
         contact = contact_time_s(run)
         trip = overload_trip_s(run)
         in_contact = touching & torque_on
-        return {
+        unmeasured: dict[str, str] = {}
+        if not in_contact.any():
+            unmeasured["mean_contact_force_n"] = self._no_contact(run)
+        drift = _drift(run.time_s, force, in_contact, contact)
+        if isinstance(drift, str):
+            unmeasured["force_drift_n_per_s"] = drift
+        metrics: dict[str, Any] = {
             "contact_time_s": contact,
             "peak_contact_force_n": float(np.nanmax(force)) if force.size else 0.0,
             "mean_contact_force_n": (
-                float(np.nanmean(force[in_contact])) if in_contact.any() else 0.0
+                float(np.nanmean(force[in_contact])) if in_contact.any() else None
             ),
             "overload_tripped": trip is not None,
             "trip_time_after_contact_s": (
                 trip - contact if trip is not None and contact is not None else None
             ),
-            "force_drift_n_per_s": _drift(run.time_s, force, in_contact, contact),
+            "force_drift_n_per_s": None if isinstance(drift, str) else drift,
         }
+        return {**metrics, UNMEASURED: unmeasured} if unmeasured else metrics
+
+    def _no_contact(self, run: RunData) -> str:
+        """Why a run has no contact force: it ended before the reference reached the block, or
+        the link never touched it (or had no torque when it did)."""
+        end_s = float(run.time_s[-1]) - run.experiment_start_s if run.time_s.size else 0.0
+        obstacle = self.world.obstacle
+        reach = None
+        if obstacle is not None:
+            times = np.arange(0.0, self.duration_s, 0.005)
+            below = [t for t in times if self.reference(t) <= obstacle.contact_angle_rad]
+            reach = below[0] if below else None
+        if reach is not None and end_s < reach:
+            return (
+                f"no contact: the run ends {end_s:.2f} s into the experiment, before the "
+                f"reference reaches the block ({reach:.2f} s)"
+            )
+        return "no contact with torque on during the run"
 
     def marks(self, run: RunData) -> WorldMarks:
         marks = super().marks(run)

@@ -18,8 +18,12 @@ Metrics (from the run's log, over all joints: the largest figure of any joint):
     equilibrium_error_rad       |e_eq| of the slow mode e(t) = e_eq + A exp(-t / tau) fitted from
                                 EQUILIBRIUM_FIT_AFTER_PUSH_S after the push to the end
                                 (hil/experiments/steady_state.py); None when the run is too short
-                                to tell (`equilibrium_note` says why: a 5 s run always is)
+                                to tell (`unmeasured` says why: a 5 s run always is)
     slow_time_constant_s        the fitted tau (None as above)
+
+A metric whose window the run did not cover (the first peak's 0.5 s after the push, the final
+value after it, the error 3.75 s after the push) is None, and `unmeasured` ({metric: why})
+says why: a `--duration 1` run ends 25 ms after the push and measures none of them.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ from matplotlib.figure import Figure
 from hil.experiments.base import Push, TestbedExperiment, World
 from hil.experiments.steady_state import SlowModeFitError, fit_slow_mode, quasi_static_error
 from hil.output.plots import ComparisonRun, comparison_title, in_drawing_order, save_figure
-from hil.output.records import RunEntry
+from hil.output.records import UNMEASURED, RunEntry
 from hil.output.report import (
     Column,
     Missing,
@@ -49,6 +53,14 @@ from hil.output.report import (
 from hil.output.rundir import RunData
 from hil.vocabulary import ControllerChoice, ControllerKind
 
+IMPACT_METRICS = (
+    "first_peak_rad",
+    "settling_time_s",
+    "oscillations",
+    "quasi_static_error_rad",
+    "equilibrium_error_rad",
+    "slow_time_constant_s",
+)
 FIRST_PEAK_WINDOW_S = 0.5
 SETTLING_FRACTION = 0.1
 SETTLING_FLOOR_RAD = 0.5e-3
@@ -75,35 +87,60 @@ def joint_impact_metrics(
     after = time >= push_start_s
     if not before.size or not after.any():
         raise ValueError("the log does not cover the push")
+    metrics: dict[str, Any] = dict.fromkeys(IMPACT_METRICS)
+    unmeasured: dict[str, str] = {}
+    # a window counts as covered when the log reaches its last tick
+    covered_s = float(time[-1]) + period - push_start_s  # the log after the push starts
+    peak_s, settled_s = FIRST_PEAK_WINDOW_S, FIRST_PEAK_WINDOW_S + FINAL_WINDOW_S
     baseline = link[before[-1]]
     window = after & (time < push_start_s + FIRST_PEAK_WINDOW_S)
-    first_peak = float(np.nanmax(np.abs(link[window] - baseline)))
+    valid = window & np.isfinite(link)
+    if covered_s < peak_s - period / 2:
+        unmeasured["first_peak_rad"] = (
+            f"the run ends {covered_s:.3f} s after the push; the first peak is looked for over "
+            f"{peak_s:g} s after it"
+        )
+    elif not np.isfinite(baseline) or not valid.any():
+        unmeasured["first_peak_rad"] = "no valid link reading at the push or in its first window"
+    else:
+        metrics["first_peak_rad"] = float(np.max(np.abs(link[valid] - baseline)))
     final_count = max(1, int(round(FINAL_WINDOW_S / period)))
-    final = float(np.nanmean(link[-final_count:]))
-    band = max(SETTLING_FRACTION * first_peak, SETTLING_FLOOR_RAD)
-    deviation = link[after] - final
-    outside = np.flatnonzero(np.abs(deviation) > band)
-    settling = float(time[after][outside[-1]] + period - push_start_s) if outside.size else 0.0
-    significant = deviation[np.abs(deviation) > band]
-    oscillations = int(np.count_nonzero(np.diff(np.sign(significant)) != 0))
-    metrics: dict[str, Any] = {
-        "first_peak_rad": first_peak,
-        "settling_time_s": settling,
-        "oscillations": oscillations,
-        "quasi_static_error_rad": None,
-        "equilibrium_error_rad": None,
-        "slow_time_constant_s": None,
-    }
+    final_values = link[-final_count:]
+    for key in ("settling_time_s", "oscillations"):
+        if covered_s < settled_s - period / 2:
+            unmeasured[key] = (
+                f"the run ends {covered_s:.3f} s after the push; settling is judged against the "
+                f"final value, the last {FINAL_WINDOW_S:g} s of a run at least {settled_s:g} s "
+                "after the push"
+            )
+        elif metrics["first_peak_rad"] is None or not np.isfinite(final_values).any():
+            unmeasured[key] = "no first peak or no valid final value to judge it against"
+    if not {"settling_time_s", "oscillations"} & unmeasured.keys():
+        final = float(np.nanmean(final_values))
+        band = max(SETTLING_FRACTION * metrics["first_peak_rad"], SETTLING_FLOOR_RAD)
+        deviation = link[after] - final
+        outside = np.flatnonzero(np.abs(deviation) > band)
+        settling = float(time[after][outside[-1]] + period - push_start_s) if outside.size else 0.0
+        significant = deviation[np.abs(deviation) > band]
+        metrics["settling_time_s"] = settling
+        metrics["oscillations"] = int(np.count_nonzero(np.diff(np.sign(significant)) != 0))
     if time[-1] >= push_start_s + QUASI_STATIC_AFTER_PUSH_S:
         error = quasi_static_error(time, link, reference, push_start_s, QUASI_STATIC_AFTER_PUSH_S)
         metrics["quasi_static_error_rad"] = abs(error.error_rad)
+    else:
+        unmeasured["quasi_static_error_rad"] = (
+            f"the run ends {covered_s:.3f} s after the push, before the "
+            f"{QUASI_STATIC_AFTER_PUSH_S:g} s at which the error is read"
+        )
     try:
         fit = fit_slow_mode(time, link, reference, push_start_s + EQUILIBRIUM_FIT_AFTER_PUSH_S)
     except SlowModeFitError as exc:
-        metrics["equilibrium_note"] = str(exc)
+        unmeasured["equilibrium_error_rad"] = unmeasured["slow_time_constant_s"] = str(exc)
     else:
         metrics["equilibrium_error_rad"] = abs(fit.equilibrium_error_rad)
         metrics["slow_time_constant_s"] = fit.time_constant_s
+    if unmeasured:
+        metrics[UNMEASURED] = unmeasured
     return metrics
 
 
@@ -130,7 +167,14 @@ class ImpactExperiment(TestbedExperiment):
             )
             for joint in run.joint_names
         ]
-        return {key: _worst([m.get(key) for m in per_joint]) for key in per_joint[0]}
+        keys = dict.fromkeys(key for metrics in per_joint for key in metrics if key != UNMEASURED)
+        merged = {key: _worst([m.get(key) for m in per_joint]) for key in keys}
+        unmeasured: dict[str, str] = {}
+        for joint, metrics in zip(run.joint_names, per_joint, strict=True):
+            for key, why in metrics.get(UNMEASURED, {}).items():
+                unmeasured.setdefault(key, f"{joint}: {why}" if joint else why)
+                merged[key] = None  # not the worst of the joints that could be measured
+        return {**merged, UNMEASURED: unmeasured} if unmeasured else merged
 
     @property
     def figure_name(self) -> str:
@@ -356,7 +400,7 @@ def equilibrium_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relatio
         for entry, label in ((high, high_label), (middle, middle_label)):
             value = metric(entry, "equilibrium_error_rad", label)
             if value is None:
-                note = entry.result.metrics.get("equilibrium_note") if entry else None
+                note = (entry.result.metrics.get(UNMEASURED) or {}).get("equilibrium_error_rad")
                 raise Missing(f"no equilibrium for {label}: {note}")
             tau = metric(entry, "slow_time_constant_s", label)
             ours.append((value, tau))

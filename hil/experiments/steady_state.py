@@ -143,6 +143,10 @@ def fit_slow_mode(
     """
     time, error = _error_signal(time_s, link_rad, reference_rad)
     end = time[-1] if end_s is None else end_s
+    if time.size and time[-1] <= start_s:
+        raise SlowModeFitError(
+            f"the run ends at {time[-1]:g} s, before the fit's window starts at {start_s:g} s"
+        )
     inside = (time >= start_s) & (time <= end) & np.isfinite(error)
     t, e = time[inside] - start_s, error[inside]
     if t.size < 10:

@@ -8,6 +8,10 @@ from typing import Any
 
 from hil.vocabulary import ControllerChoice, RunEnding, SafetyEvent, Termination
 
+# The metrics' key for those a run could not measure: {metric: why} (their values are None),
+# e.g. a first peak looked for over 0.5 s after a push in a run that ended 25 ms after it.
+UNMEASURED = "unmeasured"
+
 
 @dataclass
 class RunResult:

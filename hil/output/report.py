@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from hil.output.records import RunEntry
+from hil.output.records import UNMEASURED, RunEntry
 from hil.output.strict_json import dumps
 from hil.vocabulary import ControllerKind
 
@@ -89,6 +89,9 @@ def metric(entry: RunEntry | None, key: str, what: str) -> Any:
     if key not in result.metrics:
         error = result.metrics.get("error")
         raise Missing(f"the {what} run has no {key}" + (f" ({error})" if error else ""))
+    why = (result.metrics.get(UNMEASURED) or {}).get(key)
+    if result.metrics[key] is None and why:
+        raise Missing(f"the {what} run did not measure {key}: {why}")
     return result.metrics[key]
 
 

@@ -31,7 +31,7 @@ from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, 
 from hil.output.channels import MessageSink
 from hil.output.plots import plot_run
 from hil.output.progress import Progress
-from hil.output.records import RunResult
+from hil.output.records import UNMEASURED, RunResult
 from hil.output.rundir import add_to_summary, create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
 from hil.output.versions import package_versions
@@ -303,10 +303,17 @@ class Session:
     def _print_result(
         self, experiment: Experiment, choice: ControllerChoice, result: RunResult
     ) -> None:
-        shown = ", ".join(f"{k} = {_fmt(v)}" for k, v in result.metrics.items())
+        unmeasured = result.metrics.get(UNMEASURED) or {}
+        shown = ", ".join(
+            f"{k} = {_fmt(v)}"
+            for k, v in result.metrics.items()
+            if k != UNMEASURED and k not in unmeasured
+        )
         print(f"{experiment.name} / {choice.label}: {result.ending}")
         if shown:
             print(f"  {shown}")
+        for key, why in unmeasured.items():
+            print(f"  {key}: not measured ({why})")
         for event in result.safety_events:
             print(f"  safety: t = {event.time_s:.3f} s {event.cause} -> {event.action}")
         run_time_s = result.ticks * self.config.loop.period_s
