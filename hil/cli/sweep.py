@@ -39,7 +39,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         print(f"hil sweep: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return ExitCode.USAGE
+    if args.max_runs is not None and args.max_runs < 0:
+        print(f"hil sweep: --max-runs must be >= 0, got {args.max_runs}", file=sys.stderr)
+        return ExitCode.USAGE
     from hil.sweep import (
+        ClusterUnreachable,
         RayMissing,
         SpecError,
         TableMismatch,
@@ -63,7 +67,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             max_runs=args.max_runs,
             say=lambda text: print(text, file=sys.stderr, flush=True),
         )
-    except (RayMissing, SpecError, TableMismatch, ConfigError) as exc:
+    except (RayMissing, SpecError, TableMismatch, ConfigError, ClusterUnreachable) as exc:
         print(f"hil sweep: {exc}", file=sys.stderr)
         return ExitCode.USAGE
     print(f"{spec.title}")

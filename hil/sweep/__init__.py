@@ -14,6 +14,7 @@ when they run.
 
 from hil.sweep.engine import (
     INSTALL_HINT,
+    ClusterUnreachable,
     RayMissing,
     SweepOutcome,
     fractions_text,
@@ -37,6 +38,7 @@ from hil.sweep.table import ResultsTable, TableMismatch
 
 __all__ = [
     "INSTALL_HINT",
+    "ClusterUnreachable",
     "ModelFollows",
     "RayMissing",
     "ResultsTable",

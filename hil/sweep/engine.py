@@ -14,24 +14,27 @@ Ray is an optional dependency (`pip install -e '.[sweep]'`); without it `RayMiss
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import logging
 import os
 import signal
+import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from hil.config import Config
 from hil.output.strict_json import dumps
+from hil.sweep.checks import checked_plan
 from hil.sweep.maps import write_maps
 from hil.sweep.processes import adopt_orphans, descendants, shutdown_ray_started_here
 from hil.sweep.relations import PointRelation, RelationFraction, fractions, point_relations
-from hil.sweep.spec import Sampling, SweepSpec, Task, plan, resolved
+from hil.sweep.spec import Sampling, SweepSpec, Task, resolved
 from hil.sweep.table import ResultsTable, header
 from hil.sweep.task import FAILED, run_task, task_row
 from hil.vocabulary import Termination
@@ -41,10 +44,32 @@ INSTALL_HINT = (
     "(in a checkout: pip install -e '.[sweep]')"
 )
 IN_FLIGHT_PER_CPU = 2
+CONNECT_TIMEOUT_S = 5.0
 
 
 class RayMissing(RuntimeError):
     """Ray is not installed (the message says how to install it)."""
+
+
+class ClusterUnreachable(RuntimeError):
+    """--address names a cluster nothing answers at (the message says where and why)."""
+
+
+def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """A TCP connection to HOST:PORT (or ray://HOST:PORT) within `timeout_s`, before Ray tries:
+    `ray.init` retries an unreachable address for minutes, repeating its warnings. "auto" and
+    an address without a port are left to Ray."""
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]") or "127.0.0.1", int(port)), timeout_s).close()
+    except OSError as exc:
+        raise ClusterUnreachable(
+            f"--address {address}: cannot reach a Ray cluster there within {timeout_s:g} s "
+            f"({exc.strerror or exc}); is `ray start --head` running on that machine, and is "
+            "its port open?"
+        ) from None
 
 
 def import_ray() -> Any:
@@ -130,6 +155,7 @@ def start_ray(workers: int | None, address: str | None) -> None:
         return
     quiet: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
     if address:
+        check_reachable(address)
         ray.init(address=address, **quiet)
         return
     # A terminal's Ctrl-C goes to the whole foreground process group, Ray's own processes
@@ -197,8 +223,10 @@ def run_sweep(
     """See the module docstring. max_runs: run at most this many of the pending runs (the
     rest stay pending, as after an interruption)."""
     started = time.perf_counter()
+    if max_runs is not None and max_runs < 0:
+        raise ValueError(f"max_runs must be >= 0, got {max_runs}")
     spec = resolved(spec, base)
-    tasks = plan(spec, base)
+    tasks = checked_plan(spec, base)
     out_dir = Path(out_dir)
     table = ResultsTable(out_dir, header(spec.parameter_names, spec.experiments))
     pending = [t for t in tasks if t.run_id not in table]
@@ -216,7 +244,8 @@ def run_sweep(
         before = descendants(os.getpid())
         try:
             start_ray(workers, address)
-            done, interrupted = execute_on_ray(pending, table, out_dir, ray, say)
+            with terminate_as_interrupt():  # after ray.init, which sets its own SIGTERM exit
+                done, interrupted = execute_on_ray(pending, table, out_dir, ray, say)
             outcome.done_now, outcome.interrupted = done, interrupted
         finally:  # also after Ctrl-C during ray.init: no Ray process left behind
             if started_here and ray.is_initialized():
@@ -226,6 +255,24 @@ def run_sweep(
     outcome.wall_time_s = time.perf_counter() - started
     write_findings(spec, rows, outcome)
     return outcome
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """SIGTERM stops the sweep as Ctrl-C does (the runs in flight cancelled, the rows kept, the
+    findings written, Ray shut down), instead of Ray's handler exiting on the spot."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(_signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt("SIGTERM")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def write_findings(spec: SweepSpec, rows: list[dict[str, Any]], outcome: SweepOutcome) -> None:

@@ -43,15 +43,12 @@ import numpy as np
 
 from hil.config import Config, ConfigError
 from hil.experiments import EXPERIMENTS
+from hil.sweep.ranges import SpecError, check_range, whole_number
 from hil.vocabulary import ControllerChoice, ControllerKind
 from hil.wiring.emulation import plant_servo_noise
 
 SHIPPED_DIR = ("data", "sweeps")
 Value = float | str | bool
-
-
-class SpecError(ValueError):
-    """The sweep specification is malformed (the message names the key)."""
 
 
 class Sampling(enum.StrEnum):
@@ -256,7 +253,7 @@ def _spec(raw: dict[str, Any], name: str) -> SweepSpec:
         controllers=controllers,
         parameters=parameters,
         sampling=Sampling(sampling.get("method", "grid")),
-        count=int(sampling.get("count", 0)),
+        count=whole_number(sampling.get("count", 0), "[sampling] count", 0),
         sample_seed=int(sampling.get("seed", 0)),
         setup=SweepSetup(raw.get("setup", "in_process")),
         model=ModelFollows(raw.get("model", "nominal")),
@@ -294,12 +291,14 @@ def _parameter(raw: dict[str, Any]) -> SweepParameter:
         raise SpecError(f"parameter {name!r}: no targets")
     low, high = raw.get("low"), raw.get("high")
     relative = raw.get("relative")
+    if "values" in raw and not raw["values"]:
+        raise SpecError(f"parameter {name!r}: values is empty")
     if relative is not None:
         factors = tuple(float(f) for f in relative)
         if len(factors) != 2 or not 0 < factors[0] < factors[1]:
             raise SpecError(f"parameter {name!r}: relative = [low factor, high factor] > 0")
         relative = factors
-    return SweepParameter(
+    parameter = SweepParameter(
         name=name,
         targets=targets,
         values=tuple(raw.get("values", ())),
@@ -309,6 +308,8 @@ def _parameter(raw: dict[str, Any]) -> SweepParameter:
         log=bool(raw.get("log", False)),
         relative=relative,
     )
+    check_range(parameter)
+    return parameter
 
 
 def _check(spec: SweepSpec) -> None:
@@ -353,6 +354,7 @@ def resolved(spec: SweepSpec, config: Config) -> SweepSpec:
         if p.relative is not None:
             low, high = (factor * float(nominal[0]) for factor in p.relative)
             p = dataclasses.replace(p, low=low, high=high, relative=None)
+            check_range(p)
         parameters.append(p)
     return dataclasses.replace(spec, parameters=tuple(parameters))
 
@@ -397,7 +399,8 @@ def plan(spec: SweepSpec, base: Config) -> list[Task]:
     """Every run of the sweep, in order: per point, per experiment, per controller.
 
     The base configuration's changes ([base]) apply first; a point's values are applied in the
-    worker (a value the configuration refuses makes that run fail, recorded as failed)."""
+    worker. `hil.sweep.checks.checked_plan` sizes the plan before listing it and checks every
+    point's configuration once: what `run_sweep` runs."""
     spec = resolved(spec, base)
     for key, value in spec.base.items():
         section, _, option = key.partition(".")

@@ -1,12 +1,16 @@
 """`hil sweep` as a user runs it: Ctrl-C in the middle (SIGINT to its whole process group, as
-a terminal sends it), then the same command again: every finished run is kept, none is run
-twice, the rest are run, and no Ray process is left behind."""
+a terminal sends it) or SIGTERM to it (as a job scheduler stops it), then the same command
+again: every finished run is kept, none is run twice, the rest are run, the summary of the
+interrupted sweep is written, and no Ray process is left behind.
+
+The signal comes at a known point, not after a guess at how long the runs take (a fast
+machine once finished all six before it arrived): the sweep runs through a wrapper that
+sends it right after the second row is written (`Progress.tick`, called once per row)."""
 
 from __future__ import annotations
 
 import csv
-import os
-import signal
+import json
 import subprocess
 import sys
 import time
@@ -16,6 +20,23 @@ import pytest
 
 pytest.importorskip("ray")
 
+# `python -c WRAPPER SIGNAL ARGS...`: `hil ARGS...`, signalled after its second row.
+WRAPPER = """
+import os, signal, sys
+import hil.sweep.engine as engine
+from hil.cli import main
+signum = getattr(signal, sys.argv[1])
+tick = engine.Progress.tick
+def tick_then_signal(self, row, values):
+    tick(self, row, values)
+    if self.done == 2:
+        if signum == signal.SIGINT:
+            os.killpg(os.getpgid(0), signum)  # a terminal's Ctrl-C: the whole group
+        else:
+            os.kill(os.getpid(), signum)
+engine.Progress.tick = tick_then_signal
+sys.exit(main(sys.argv[2:]))
+"""
 SPEC = """
 title = "interrupt"
 experiments = ["impact"]
@@ -62,23 +83,27 @@ def _new_ray_processes(before: set[str]) -> set[str]:
 
 @pytest.mark.slow
 @pytest.mark.timeout(600)
-def test_ctrl_c_then_the_same_command_resumes_without_repeating(tmp_path: Path) -> None:
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_stopped_sweep_then_the_same_command_resumes_without_repeating(
+    tmp_path: Path, signame: str
+) -> None:
     spec, out = tmp_path / "interrupt.toml", tmp_path / "out"
     spec.write_text(SPEC)
-    command = [sys.executable, "-m", "hil", "sweep", str(spec), "--workers", "1", "--out", str(out)]
+    args = ["sweep", str(spec), "--workers", "1", "--out", str(out)]
     ray_before = _ray_processes()
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
-    )
-    deadline = time.monotonic() + 300
-    while len(_rows(out)) < 2 and time.monotonic() < deadline and process.poll() is None:
-        time.sleep(0.2)
-    os.killpg(process.pid, signal.SIGINT)
-    _, err = process.communicate(timeout=120)
+        [sys.executable, "-c", WRAPPER, signame, *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    _, err = process.communicate(timeout=300)
     assert process.returncode == 1, err
     before = _rows(out)
-    assert 2 <= len(before) < 6, err
+    assert len(before) == 2, err  # the rows written before the signal, no more, no fewer
+    assert "Traceback" not in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["interrupted"], summary["finished"], summary["runs"]) == (True, 2, 6)
     assert not _new_ray_processes(ray_before)  # the interrupted sweep shut Ray down
+    command = [sys.executable, "-m", "hil", *args]
 
     again = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr

@@ -199,3 +199,19 @@ def test_relations_at_each_point_and_their_fractions() -> None:
     assert (peak.holds, peak.not_checked) == (1, 1)
     stable = by_claim["gc+lqr+dob (Kdist 1): the closed loop is stable after the push"]
     assert (stable.holds, stable.not_checked) == (1, 1)  # settled 1 s after the push, of 4 s
+
+
+def test_a_run_that_raises_is_a_failed_row_with_the_error_not_nothing(tmp_path) -> None:
+    """What checked_plan lets through can still fail in the worker: the row says so (here a
+    task made by hand with a servo gain the emulator refuses)."""
+    from dataclasses import replace
+
+    from hil.sweep.task import FAILED, run_task
+
+    (task,) = plan(parse_spec(GRID.replace("values = [8.0, 12.0]", "values = [8.0]"), "g"), CONFIG)[
+        :1
+    ]
+    bad = replace(task, targets={"emulator.servo.position_gain_per_s": -1.0})
+    row = run_task(bad, str(tmp_path))
+    assert row["ending"] == FAILED and "position_gain_per_s" in row["error"]
+    assert row["out_dir"] == ""  # refused before the run started: nothing written
