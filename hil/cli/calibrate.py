@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from drivers.joint_bus import BusError
@@ -22,7 +24,6 @@ from hil.cli.exit_codes import ExitCode
 from hil.cli.monitor import read_only_bus
 from hil.config import Config, ConfigError
 from hil.loop import StopFlag
-from hil.output.rundir import unique_dir
 
 
 def parse_poses(texts: list[str], config: Config) -> dict[str, float]:
@@ -82,15 +83,66 @@ def _direction_text(joint: JointCalibration) -> str:
 
 
 def _write(path: Path, calibration: Calibration) -> Path:
-    """Update the file in place after copying it to a backup; returns the backup's path."""
+    """Update the file in place, the old one kept as a backup; returns the backup's path."""
     text = path.read_text()
     updated = update_config_text(text, {j.name: j.offsets for j in calibration.joints})
-    backup = unique_dir(path.with_name(path.name + ".bak"))
-    shutil.copy2(path, backup)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(updated)
-    tmp.replace(path)
+    return write_keeping_backup(path, updated)
+
+
+def write_keeping_backup(path: Path, text: str) -> Path:
+    """`path` replaced by `text` in one rename, the old file kept as PATH.bak (PATH.bak-2, ...
+    when one exists); returns the backup's path. The new text goes to a temporary file beside
+    it first (written and synced); if anything fails, the temporary and the new backup are
+    removed and the error raised: nothing is left behind, the file is as it was."""
+    old = path.read_bytes()
+    backup: Path | None = None
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    tmp = Path(name)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        shutil.copymode(path, tmp)
+        backup = _new_backup(path, old)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        if backup is not None:
+            backup.unlink(missing_ok=True)
+        raise
     return backup
+
+
+def _new_backup(path: Path, data: bytes) -> Path:
+    """PATH.bak, or PATH.bak-2, ...: created exclusively, holding `data`."""
+    number = 1
+    while True:
+        candidate = path.with_name(path.name + ".bak" + (f"-{number}" if number > 1 else ""))
+        try:
+            with open(candidate, "xb") as f:
+                f.write(data)
+        except FileExistsError:
+            number += 1
+            continue
+        except BaseException:
+            candidate.unlink(missing_ok=True)
+            raise
+        shutil.copystat(path, candidate)
+        return candidate
+
+
+def _check_writable(path: Path) -> None:
+    """--write: the file must be there and its directory writable (a temporary file and the
+    backup go beside it), judged before anything is read."""
+    if not path.is_file():
+        raise ConfigError(f"--write {path}: no such file")
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".check", dir=path.parent)
+        os.close(fd)
+        os.unlink(name)
+    except OSError as exc:
+        raise ConfigError(f"--write {path}: cannot write beside it: {exc}") from None
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
@@ -98,6 +150,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise ConfigError(f"--seconds: must be a finite time > 0 s, got {args.seconds}")
     if args.write and args.config is None:
         raise ConfigError("--write updates the configuration file: give it with --config FILE")
+    if args.write:
+        _check_writable(args.config)
     config = checked_config(args.config)
     poses = parse_poses(args.pose, config)
     stop = StopFlag()
@@ -129,6 +183,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return ExitCode.FAILED
     sys.stdout.write(calibration_fragment(calibration))
     if args.write:
-        backup = _write(args.config, calibration)
+        try:
+            backup = _write(args.config, calibration)
+        except OSError as exc:
+            print(
+                f"hil calibrate: cannot write {args.config}: {exc}; it is unchanged",
+                file=sys.stderr,
+            )
+            return ExitCode.FAILED
         print(f"hil calibrate: updated {args.config} (the old file: {backup})", file=sys.stderr)
     return ExitCode.OK
