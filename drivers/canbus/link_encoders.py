@@ -38,6 +38,10 @@ latency. In-process lock-step: send_sync(), then pump the emulated nodes, then c
 Units: counts -> radians in `units.link_angle_rad_from_counts` and PV -> N in
 `units.force_n_from_counts`, nowhere else. The TPDO bytes are decoded as a little-endian INTEGER32
 (CiA 406 v3.2; an UNSIGNED32 device sends the same bits), so negative link angles are negative.
+A multi-turn count that passes the INTEGER32 range wraps (2**31 - 1 + 1 -> -2**31): an encoder's
+count is read on through the wrap, each reading the last plus the difference modulo 2**32 (a
+link never turns 2**31 counts, 2184 revolutions at 983,040 counts/rev, between two readings);
+the first reading after `open()` is taken as it is.
 """
 
 from __future__ import annotations
@@ -101,6 +105,7 @@ _STANDARD_ID_MASK = 0x7FF
 _HEARTBEAT_BASE = 0x700
 _TPDO_COB_ID_BASES = (0x180, 0x280, 0x380, 0x480)
 _INT32 = struct.Struct("<i")
+_INT32_SPAN = 2**32
 _UNKNOWN_STATE = 0xFF
 _NOTIFIER_POLL_S = 0.005
 # CiA 301 frame lengths canopen's handlers rely on, by function code (COB-ID & 0x780), for
@@ -240,6 +245,7 @@ class LinkEncoderReader:
         self._direction = np.array([c.direction for c in encoder_configs], dtype=np.int64)
         self._offset_rad = np.array([c.offset_rad for c in encoder_configs])
         self._single_turn = np.zeros(self._n_encoders, dtype=bool)
+        self._counts = np.zeros(self._n_encoders, dtype=np.int64)  # read on through the wrap
         self._n_answered = 0
         self._sync_time_s = math.nan
         self._sync_outstanding = False
@@ -478,6 +484,12 @@ class LinkEncoderReader:
         self._unchanged = np.where(
             repeated, self._unchanged + 1, np.where(answered, 0, self._unchanged)
         )
+        n = self._n_encoders
+        new, before = self._answer_raw[:n], self._raw[:n]
+        step = (new - before + _INT32_SPAN // 2) % _INT32_SPAN - _INT32_SPAN // 2
+        self._counts = np.where(
+            answered[:n], np.where(self._have_raw[:n], self._counts + step, new), self._counts
+        )
         self._raw = np.where(answered, self._answer_raw, self._raw)
         self._have_raw |= answered
         self._last_valid_time[answered] = now_s
@@ -487,9 +499,8 @@ class LinkEncoderReader:
         heartbeat_lost = heartbeat_age_s > self._heartbeat_timeout_s
         states = tuple(_state_name(int(state)) for state in self._nmt_state)
 
-        n = self._n_encoders
         angles = link_angle_rad_from_counts(
-            self._raw[:n],
+            self._counts,
             self._counts_per_rev,
             self._direction,
             self._offset_rad,

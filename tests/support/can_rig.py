@@ -37,6 +37,7 @@ class Rig:
             bus_description=f"virtual {channel}",
             **reader_kwargs,
         )
+        self.channel = channel
         self.description = f"virtual {channel}"
 
     def serve_while(self, action) -> None:
