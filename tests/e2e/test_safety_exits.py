@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -149,18 +150,9 @@ def test_a_signal_in_the_middle_of_a_run_leaves_torque_off_and_the_log_complete(
             "--out",
             str(out),
         ]
-        process = subprocess.Popen(
-            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        process, run_dir, _, stderr = _attached_run(
+            command, out, 200, lambda p: p.send_signal(signum)
         )
-        try:
-            _wait_until_a_run_dir(out, process)
-            (run_dir,) = out.iterdir()
-            _wait_for_rows(run_dir / "log.csv", 200, process, timeout_s=30)
-            process.send_signal(signum)
-            _, stderr = process.communicate(timeout=30)
-        finally:
-            if process.poll() is None:
-                process.kill()
         device = read_device(emulator.endpoints)
     assert process.returncode == 1, stderr
     run = load_run(run_dir)
@@ -170,6 +162,24 @@ def test_a_signal_in_the_middle_of_a_run_leaves_torque_off_and_the_log_complete(
     assert run.summary["exit"][0] == "torque off"
     assert run.events_of("torque_off")[-1]["message"] == "exit: torque off"
     assert device.torque_enabled == 0
+
+
+def _attached_run(
+    command: list[str], out: Path, rows: int, act: Callable[[subprocess.Popen], object]
+) -> tuple[subprocess.Popen, Path, str, str]:
+    """Start `hil run` (`command`), wait for `rows` log rows, `act` on it (a signal, the
+    emulator killed), wait for its end: (process, run directory, stdout, stderr)."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_until_a_run_dir(out, process)
+        (run_dir,) = out.iterdir()
+        _wait_for_rows(run_dir / "log.csv", rows, process, timeout_s=30)
+        act(process)
+        stdout, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    return process, run_dir, stdout, stderr
 
 
 def _wait_until_a_run_dir(out: Path, process: subprocess.Popen) -> None:
@@ -198,18 +208,9 @@ def test_torque_that_could_not_be_turned_off_is_said_loudly_and_has_its_own_exit
             "--duration", "60", "--json", "--no-plots", "--attach",
             json.dumps(emulator.endpoints), "--out", str(out),
         ]  # fmt: skip
-        process = subprocess.Popen(
-            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        process, run_dir, stdout, stderr = _attached_run(
+            command, out, 100, lambda _p: emulator.process.kill()
         )
-        try:
-            _wait_until_a_run_dir(out, process)
-            (run_dir,) = out.iterdir()
-            _wait_for_rows(run_dir / "log.csv", 100, process, timeout_s=30)
-            emulator.process.kill()
-            stdout, stderr = process.communicate(timeout=60)
-        finally:
-            if process.poll() is None:
-                process.kill()
     assert process.returncode == ExitCode.TORQUE_NOT_OFF == 3, stderr
     assert "TORQUE COULD NOT BE TURNED OFF" in stderr
     line = strict_loads(stdout.strip().splitlines()[-1])
