@@ -11,6 +11,7 @@ import contextlib
 import io
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -40,6 +41,11 @@ def test_a_dead_encoders_unmeasurable_figures_are_null_in_every_json_written(
         )  # fmt: skip
     assert code == 1  # the dead encoder stops the run (link_stale)
     (run_dir,) = tmp_path.iterdir()
+    # the result's log line tells the run's length from the time it took ("(325 ticks, 0.6 s)"
+    # read as a 0.6 s log)
+    assert re.search(
+        r"\(325 ticks = 1\.62 s of run time, in [\d.]+ s on the wall clock\)", out.getvalue()
+    )
     line = strict_loads(out.getvalue().strip().splitlines()[-1])
     assert line["first_peak_rad"] is None
     summary = strict_loads((run_dir / "summary.json").read_text())
