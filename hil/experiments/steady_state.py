@@ -120,6 +120,23 @@ def _linear_fit(t: np.ndarray, e: np.ndarray, tau: float) -> tuple[np.ndarray, f
     return coefficients, float(residual @ residual)
 
 
+def _fit_window(
+    time: np.ndarray, error: np.ndarray, start_s: float, end_s: float | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The error's valid samples in [start_s, end_s] (time from start_s), at least 10."""
+    end = time[-1] if end_s is None else end_s
+    if time.size and time[-1] <= start_s:
+        raise SlowModeFitError(
+            f"the run ends at {time[-1]:g} s, before the fit's window starts at {start_s:g} s"
+        )
+    inside = (time >= start_s) & (time <= end) & np.isfinite(error)
+    if np.count_nonzero(inside) < 10:
+        raise SlowModeFitError(
+            f"only {np.count_nonzero(inside)} valid samples in [{start_s}, {end}] s"
+        )
+    return time[inside] - start_s, error[inside]
+
+
 def fit_slow_mode(
     time_s: np.ndarray,
     link_rad: np.ndarray,
@@ -141,16 +158,7 @@ def fit_slow_mode(
     A below MIN_AMPLITUDE_NOISE_RATIO x the residual rms, or standard errors above
     MAX_RELATIVE_STD of tau or of |A|.
     """
-    time, error = _error_signal(time_s, link_rad, reference_rad)
-    end = time[-1] if end_s is None else end_s
-    if time.size and time[-1] <= start_s:
-        raise SlowModeFitError(
-            f"the run ends at {time[-1]:g} s, before the fit's window starts at {start_s:g} s"
-        )
-    inside = (time >= start_s) & (time <= end) & np.isfinite(error)
-    t, e = time[inside] - start_s, error[inside]
-    if t.size < 10:
-        raise SlowModeFitError(f"only {t.size} valid samples in [{start_s}, {end}] s")
+    t, e = _fit_window(*_error_signal(time_s, link_rad, reference_rad), start_s, end_s)
     if not 0 < min_time_constant_s < max_time_constant_s:
         raise ValueError("need 0 < min_time_constant_s < max_time_constant_s")
     bounds = (math.log(min_time_constant_s), math.log(max_time_constant_s))

@@ -17,7 +17,8 @@ from tests.support.rig import assert_log_complete, run_in_process
 
 def test_six_joints_run_log_and_plot_joint_by_joint(tmp_path: Path) -> None:
     config = config_with_joints(load_config(), 6)
-    result, run = run_in_process(config, IMPACT, "gc+lqr+dob", tmp_path, duration_s=1.2)
+    # 1.6 s: the push at 1 s and the first peak's 0.5 s window after it (hil/experiments/impact.py)
+    result, run = run_in_process(config, IMPACT, "gc+lqr+dob", tmp_path, duration_s=1.6)
     assert result.ok
     assert_log_complete(run)
     assert run.data.joint_names == config.joint_names
