@@ -77,6 +77,19 @@ def format_value(value: Any) -> str:
     return str(value)
 
 
+def format_column(values: np.ndarray) -> list[str]:
+    """`format_value` of every element of a per-joint array, in one pass per column (the log's
+    hot path: ~200 cells a tick on the humanoid): the same text, cell for cell."""
+    kind = values.dtype.kind
+    if kind == "f":
+        return [repr(round(value, 9)) for value in values.tolist()]
+    if kind == "b":
+        return ["1" if value else "0" for value in values.tolist()]
+    if kind in "iu":
+        return [str(value) for value in values.tolist()]
+    return [format_value(value) for value in values]
+
+
 def joint_column(name: str, joint: str, n_joints: int) -> str:
     """The header of a per-joint column: `name` for one joint, `name[joint]` for several."""
     return name if n_joints == 1 else f"{name}[{joint}]"
@@ -173,11 +186,12 @@ class RunLog:
         row[i] = supervisor_state
         row[i + 1] = phase
         row[i + 2] = format_value(skipped_ticks)
-        i = self._joint_start
-        for j in range(len(self.joint_names)):
-            for column in joints:
-                row[i] = format_value(column[j])
-                i += 1
+        # joint-major: the cells of joint j are row[start + j * width : ... + width]
+        start, width = self._joint_start, len(joints)
+        end = start + width * len(self.joint_names)
+        for offset, column in enumerate(joints):
+            row[start + offset : end : width] = format_column(np.asarray(column))
+        i = end
         row[i] = format_value(slack_s)
         row[i + 1] = format_value(measured_period_s)
         self._log.writerow(row)
