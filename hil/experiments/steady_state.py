@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize
 
 DEFAULT_WINDOW_S = 0.1
 MIN_TIME_CONSTANT_S = 0.05
@@ -150,6 +149,8 @@ def fit_slow_mode(
     if not 0 < min_time_constant_s < max_time_constant_s:
         raise ValueError("need 0 < min_time_constant_s < max_time_constant_s")
     bounds = (math.log(min_time_constant_s), math.log(max_time_constant_s))
+    import scipy.optimize  # here: every command imports the experiments, few fit a mode
+
     search = scipy.optimize.minimize_scalar(
         lambda log_tau: _linear_fit(t, e, math.exp(log_tau))[1],
         bounds=bounds,
