@@ -22,7 +22,9 @@ is the quasi-static error at that time, not an equilibrium. So a report gives
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -119,6 +121,16 @@ def _linear_fit(t: np.ndarray, e: np.ndarray, tau: float) -> tuple[np.ndarray, f
     return coefficients, float(residual @ residual)
 
 
+def _minimize_on(function: Callable[[float], float], bounds: tuple[float, float]) -> Any:
+    """scipy's bounded scalar minimisation (scipy.optimize imported here: every command
+    imports the experiments, few fit a mode)."""
+    import scipy.optimize
+
+    return scipy.optimize.minimize_scalar(
+        function, bounds=bounds, method="bounded", options={"xatol": 1e-6}
+    )
+
+
 def fit_slow_mode(
     time_s: np.ndarray,
     link_rad: np.ndarray,
@@ -149,14 +161,7 @@ def fit_slow_mode(
     if not 0 < min_time_constant_s < max_time_constant_s:
         raise ValueError("need 0 < min_time_constant_s < max_time_constant_s")
     bounds = (math.log(min_time_constant_s), math.log(max_time_constant_s))
-    import scipy.optimize  # here: every command imports the experiments, few fit a mode
-
-    search = scipy.optimize.minimize_scalar(
-        lambda log_tau: _linear_fit(t, e, math.exp(log_tau))[1],
-        bounds=bounds,
-        method="bounded",
-        options={"xatol": 1e-6},
-    )
+    search = _minimize_on(lambda log_tau: _linear_fit(t, e, math.exp(log_tau))[1], bounds)
     tau = math.exp(float(search.x))
     (equilibrium, amplitude), rss = _linear_fit(t, e, tau)
     span = float(t[-1])
