@@ -12,6 +12,12 @@
 Markers: `slow` (more than ~5 s), `subprocess` (starts `hil emulate` or another process),
 `timing` (asserts wall-clock figures: relaxed on a loaded machine), `hardware` (needs the real
 testbed: run with --hardware-config FILE; skipped otherwise).
+
+Parallel workers (pytest-xdist, `-n 2 --dist loadgroup`, as the README's test command runs
+the suite): a test module stays on one worker (its module-scoped emulators are built once),
+the modules that start Ray share one worker (two Ray clusters on two cores starve each other),
+and the `timing` tests run in a second, serial pass (`-m timing`), where no other test loads
+the machine.
 """
 
 from __future__ import annotations
@@ -20,7 +26,10 @@ from pathlib import Path
 
 import pytest
 
-_E2E = Path(__file__).parent / "e2e"
+_TESTS = Path(__file__).parent
+_E2E = _TESTS / "e2e"
+# Modules that start a Ray cluster: on one xdist worker, one after the other.
+_RAY_MODULES = frozenset({"test_sweep_ray.py", "test_sweep_interrupt.py"})
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -39,3 +48,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.subprocess)
         if "hardware" in item.keywords and not hardware:
             item.add_marker(skip_hardware)
+        module = Path(str(item.fspath))
+        group = "ray" if module.name in _RAY_MODULES else str(module.relative_to(_TESTS))
+        item.add_marker(pytest.mark.xdist_group(group))

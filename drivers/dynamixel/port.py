@@ -73,19 +73,35 @@ class LowLatencyPortHandler(PortHandler):
         self.latency_timer_ms = float(latency_timer_ms)
         self.timeout_margin_ms = float(timeout_margin_ms)
         self.failure: str | None = None  # the OS error that made the port fail, once it has
+        # Bytes read ahead from the OS (see `_read_ahead`) and how far the SDK has taken them.
+        self._ahead = b""
+        self._position = 0
 
     # The SDK's port I/O, guarded: a failure is recorded once and reported as PortGoneError.
     def clearPort(self) -> None:
+        self._ahead, self._position = b"", 0  # what was read ahead is input too: discarded
         self._guarded("clear", super().clearPort)
 
     def writePort(self, packet: list[int] | bytes) -> int:
         return self._guarded("write", super().writePort, packet)
 
     def readPort(self, length: int) -> bytes:
-        return self._guarded("read", self._read_when_ready, length)
+        position = self._position
+        end = position + length
+        if end <= len(self._ahead) and self.failure is None:  # read ahead already: no call
+            self._position = end
+            return self._ahead[position:end]
+        return self._guarded("read", self._read_ahead, length)
 
-    def _read_when_ready(self, length: int) -> bytes:
-        """The SDK's read, after sleeping until a byte is there or the packet timeout is up.
+    def _read_ahead(self, length: int) -> bytes:
+        """Up to `length` bytes, as the SDK's non-blocking read returns them, from one read of
+        everything the OS holds (after sleeping until a byte is there, see below).
+
+        The SDK reads a status packet in two or three `readPort` calls (header, then the rest),
+        each a select() and a read() on the port: 24-36 system calls for the twelve replies of
+        the humanoid's sync read. Reading ahead makes it one or two; the SDK sees the same
+        bytes in the same order (`clearPort` discards what was read ahead with the OS's
+        buffer).
 
         The SDK's rxPacket calls readPort in a loop without pause until the reply is complete
         or isPacketTimeout(): with the port's non-blocking read that spins a core for the
@@ -96,15 +112,22 @@ class LowLatencyPortHandler(PortHandler):
         logic is unchanged. Outside a packet's timeout window, or when asked for nothing,
         it does not wait.
         """
-        fileno = getattr(self.ser, "fileno", None)  # a port without one is polled as before
-        if length > 0 and fileno is not None:
-            remaining_ms = self.packet_start_time + self.packet_timeout - self.getCurrentTime()
-            if remaining_ms > 0.0:
-                select.select((fileno(),), (), (), remaining_ms / 1000.0)
-        return super().readPort(length)
+        ahead = self._ahead[self._position :]
+        if length > len(ahead):
+            fileno = getattr(self.ser, "fileno", None)  # a port without one is polled as before
+            if fileno is not None:
+                remaining_ms = self.packet_start_time + self.packet_timeout - self.getCurrentTime()
+                if remaining_ms > 0.0:
+                    select.select((fileno(),), (), (), remaining_ms / 1000.0)
+            # everything there, or what is missing (a non-blocking read: what there is)
+            ahead += super().readPort(max(self.ser.in_waiting, length - len(ahead)))
+        taken = min(length, len(ahead))
+        self._ahead, self._position = ahead, taken
+        return ahead[:taken]
 
     def getBytesAvailable(self) -> int:
-        return self._guarded("bytes available", super().getBytesAvailable)
+        buffered = len(self._ahead) - self._position
+        return buffered + self._guarded("bytes available", super().getBytesAvailable)
 
     def gone_error(self, operation: str) -> PortGoneError:
         """The error for an `operation` on this failed port (see `PortGoneError`)."""

@@ -41,6 +41,7 @@ from hil.bench.common import (
     with_retries,
 )
 from hil.bench.machine import bench_cpu_stalls, bench_idle_sleeper, stall_counts_longer_than
+from hil.bench.speed import bench_speed, speed_text
 from hil.config import Config, robot_of
 from hil.experiments import IMPACT, STAND, Experiment
 from hil.loop import (
@@ -361,6 +362,8 @@ def run_bench_loop(
     controllers = bench_controllers(config, ticks, joint_counts=joint_counts)
     schedule = bench_gain_schedule(config)
     name = loop_experiment(config).name
+    say("bench loop: real-time factors through the buses, in process and of MuJoCo alone ...")
+    speed = bench_speed(config, loop_experiment(config), LOOP_CONTROLLER, ticks, say=say)
     with tempfile.TemporaryDirectory(prefix="hil-bench-") as tmp:
         say(f"bench loop: lock-step {name} run with {LOOP_CONTROLLER}, {ticks} ticks ...")
         lockstep = bench_lockstep_run(config, ticks, Path(tmp) / "lockstep", say)
@@ -389,6 +392,7 @@ def run_bench_loop(
         },
         "controllers": controllers,
         "gain_schedule": schedule,
+        "speed": speed,
         "lockstep_run": lockstep,
         "wall_clock_run": wall,
         "idle_sleeper": sleeper,
@@ -425,6 +429,7 @@ def loop_report_text(report: dict[str, Any]) -> str:
         "the tick on a real robot's wires (drivers/tick_budget.py, from the configuration):",
     ]
     lines.append("  " + report["tick_budget"]["text"])
+    lines += ["", *speed_text(report["speed"])]
     lock = report["lockstep_run"]
     lines += [
         "",

@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from hil.experiments.base import Obstacle, Ramp, TestbedExperiment, World
 from hil.output.plots import (
@@ -271,6 +270,8 @@ def plot_contact_comparison(
     """Fig. 5: (a) desired and measured link angle, (b) contact force, all controllers."""
     if not runs:
         raise ValueError("plot_contact_comparison needs at least one run")
+    from matplotlib.figure import Figure
+
     figure = Figure(figsize=(10, 8), layout="constrained")
     angle_ax, force_ax = figure.subplots(2, 1, sharex=True)
     figure.suptitle(comparison_title(experiment.title, setup), fontsize=10)

@@ -34,7 +34,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from hil.experiments.base import Push, TestbedExperiment, World
 from hil.experiments.steady_state import SlowModeFitError, fit_slow_mode, quasi_static_error
@@ -331,6 +330,8 @@ def plot_impact_comparison(
     if not experiment.world.pushes:
         raise ValueError(f"experiment {experiment.name!r} has no push to align the runs on")
     push = experiment.world.pushes[0]
+    from matplotlib.figure import Figure
+
     figure = Figure(figsize=(10, 5.5), layout="constrained")
     ax = figure.subplots()
     figure.suptitle(comparison_title(experiment.title, setup), fontsize=10)

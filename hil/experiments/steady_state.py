@@ -22,10 +22,11 @@ is the quasi-static error at that time, not an equilibrium. So a report gives
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-import scipy.optimize
 
 DEFAULT_WINDOW_S = 0.1
 MIN_TIME_CONSTANT_S = 0.05
@@ -137,6 +138,16 @@ def _fit_window(
     return time[inside] - start_s, error[inside]
 
 
+def _minimize_on(function: Callable[[float], float], bounds: tuple[float, float]) -> Any:
+    """scipy's bounded scalar minimisation (scipy.optimize imported here: every command
+    imports the experiments, few fit a mode)."""
+    import scipy.optimize
+
+    return scipy.optimize.minimize_scalar(
+        function, bounds=bounds, method="bounded", options={"xatol": 1e-6}
+    )
+
+
 def fit_slow_mode(
     time_s: np.ndarray,
     link_rad: np.ndarray,
@@ -162,12 +173,7 @@ def fit_slow_mode(
     if not 0 < min_time_constant_s < max_time_constant_s:
         raise ValueError("need 0 < min_time_constant_s < max_time_constant_s")
     bounds = (math.log(min_time_constant_s), math.log(max_time_constant_s))
-    search = scipy.optimize.minimize_scalar(
-        lambda log_tau: _linear_fit(t, e, math.exp(log_tau))[1],
-        bounds=bounds,
-        method="bounded",
-        options={"xatol": 1e-6},
-    )
+    search = _minimize_on(lambda log_tau: _linear_fit(t, e, math.exp(log_tau))[1], bounds)
     tau = math.exp(float(search.x))
     (equilibrium, amplitude), rss = _linear_fit(t, e, tau)
     span = float(t[-1])

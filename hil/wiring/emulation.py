@@ -10,7 +10,6 @@ cross-process setup take the same path over the same wire.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import os
 import signal
@@ -35,7 +34,17 @@ from sim_backend.spec import (
     FloorBox,
     HumanoidSpec,
     SensorNoise,
+    spec_from_json,
+    spec_to_json,
 )
+
+__all__ = [
+    "EmbeddedEmulator",
+    "EmulatorStartError",
+    "emulator_spec",
+    "spec_from_json",
+    "spec_to_json",
+]
 
 STARTUP_TIMEOUT_S = 30.0
 
@@ -169,49 +178,6 @@ def _humanoid(
     )
 
 
-def spec_to_json(spec: EmulatorSpec) -> str:
-    return json.dumps(dataclasses.asdict(spec))
-
-
-def spec_from_json(text: str) -> EmulatorSpec:
-    raw = json.loads(text)
-    plant = dict(raw["plant"])
-    obstacle = plant.pop("obstacle", None)
-    from sim_backend.plant import ObstacleParams
-
-    humanoid = raw.get("humanoid")
-    return EmulatorSpec(
-        joints=tuple(EmulatedJointSpec(**j) for j in raw["joints"]),
-        baudrate=raw["baudrate"],
-        can_bitrate=raw["can_bitrate"],
-        force_sensor_node_id=raw["force_sensor_node_id"],
-        period_s=raw["period_s"],
-        clock=raw["clock"],
-        seed=raw["seed"],
-        plant=TestbedPlantParams(
-            **plant, obstacle=ObstacleParams(**obstacle) if obstacle else None
-        ),
-        servo=H54ServoParams(**raw["servo"]),
-        scenario=Scenario.from_dict(raw["scenario"]),
-        reboot_time_s=raw["reboot_time_s"],
-        heartbeat_ms=raw["heartbeat_ms"],
-        sensor_noise=SensorNoise(**raw["sensor_noise"]),
-        usb_latency_timer_s=raw["usb_latency_timer_s"],
-        can_bootup_delay_s=raw["can_bootup_delay_s"],
-        robot=raw["robot"],
-        humanoid=HumanoidSpec(
-            urdf_text=humanoid["urdf_text"],
-            ft_sensor_node_ids=tuple(humanoid["ft_sensor_node_ids"]),
-            initial_leg_angles_rad=tuple(humanoid["initial_leg_angles_rad"]),
-            support_feet=tuple(humanoid["support_feet"]),
-            truth=humanoid["truth"],
-            floor_boxes=tuple(FloorBox(**box) for box in humanoid.get("floor_boxes", ())),
-        )
-        if humanoid
-        else None,
-    )
-
-
 class EmulatorStartError(RuntimeError):
     pass
 
@@ -244,7 +210,8 @@ class EmbeddedEmulator:
         # stderr goes to a file: a pipe nobody reads could fill up and stall the emulator
         self._stderr = tempfile.TemporaryFile(mode="w+", prefix="hil-emulator-stderr-")  # noqa: SIM115
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "hil", "emulate", "--spec-file", name],
+            # the emulator's own entry point: it imports sim_backend, not the whole of hil
+            [sys.executable, "-m", "sim_backend", "--spec-file", name],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,

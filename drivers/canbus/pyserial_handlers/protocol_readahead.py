@@ -20,10 +20,14 @@ SCHEME = "readahead"
 
 
 class Serial(serial.Serial):
-    """pyserial's `Serial` for PORT of `readahead://PORT` (see the module docstring)."""
+    """pyserial's `Serial` for PORT of `readahead://PORT` (see the module docstring).
+
+    The buffer is immutable bytes with a read position: python-can asks for one byte per call,
+    so a read is a slice and an index step, not a copy of what is left."""
 
     def __init__(self, *args: object, **kwargs: object) -> None:
-        self._ahead = bytearray()
+        self._ahead = b""
+        self._position = 0
         super().__init__(*args, **kwargs)
 
     @serial.Serial.port.setter  # type: ignore[attr-defined,misc]
@@ -44,20 +48,26 @@ class Serial(serial.Serial):
 
     @property
     def in_waiting(self) -> int:
-        return len(self._ahead) + super().in_waiting
+        """The bytes read ahead; only when there are none, what the OS holds (one ioctl):
+        a caller that reads what this says, and asks again, sees every byte either way."""
+        buffered = len(self._ahead) - self._position
+        return buffered if buffered else super().in_waiting
 
     def read(self, size: int = 1) -> bytes:
-        ahead = self._ahead
+        position = self._position
+        end = position + size
+        if end <= len(self._ahead):  # the common case: a byte of a frame already read ahead
+            self._position = end
+            return self._ahead[position:end]
+        ahead = self._ahead[position:]
+        waiting = super().in_waiting
+        if waiting:
+            ahead += super().read(waiting)  # there already: returns without waiting
         if len(ahead) < size:
-            waiting = super().in_waiting
-            if waiting:
-                ahead += super().read(waiting)  # there already: returns without waiting
-            if len(ahead) < size:
-                ahead += super().read(size - len(ahead))  # waits as pyserial does
-        data = bytes(ahead[:size])
-        del ahead[:size]
-        return data
+            ahead += super().read(size - len(ahead))  # waits as pyserial does
+        self._ahead, self._position = ahead, min(size, len(ahead))
+        return ahead[:size]
 
     def reset_input_buffer(self) -> None:
-        self._ahead.clear()
+        self._ahead, self._position = b"", 0
         super().reset_input_buffer()
