@@ -117,6 +117,9 @@ class H54Device:
         self._registered: tuple[int, bytes] | None = None
         self._reboot_listeners: list[Callable[[], None]] = []
         self._indirect_map: list[int] | None = None  # Indirect Address 1..256, cached
+        # The firmware writes the Present* items when a read may cover them (see
+        # `attach_measurement_source`), not after every physics step.
+        self._measurement_source: Callable[[], None] | None = None
         # Changes with every write but the firmware's measurements: the firmware re-decodes
         # its registers only then.
         self.revision = 0
@@ -186,6 +189,10 @@ class H54Device:
 
     def item(self, name: str) -> int:
         """Decoded value of an item (signed where the item is); Indirect Data follows its map."""
+        if self._measurement_source is not None and (
+            name in self._measured_names or name not in self._direct_items
+        ):
+            self._measurement_source()
         direct = self._direct_items.get(name)
         if direct is not None:  # the firmware reads ~15 items per physics step: keep it cheap
             address, end, _, signed = direct
@@ -229,6 +236,12 @@ class H54Device:
             self._measurement_slots, values, strict=True
         ):
             table[address:end] = value.to_bytes(size, "little", signed=signed)
+
+    def attach_measurement_source(self, write_measurements: Callable[[], None]) -> None:
+        """`write_measurements()` runs before every read that may cover the Present* items (a
+        READ, SYNC_READ or BULK_READ, Indirect Data, `item` of a measured item): the firmware
+        writes them then with `set_measurements`, if they changed since."""
+        self._measurement_source = write_measurements
 
     def raise_hardware_error(self, bits: int) -> None:
         """OR `bits` into Hardware Error Status (892). Bits also set in Shutdown (48) turn
@@ -286,6 +299,8 @@ class H54Device:
         """READ: (error number, data). Undefined bytes inside the table read as 0."""
         if address < 0 or length < 0 or address + length > self._layout.size_bytes:
             return ErrorCode.ACCESS, b""
+        if self._measurement_source is not None:
+            self._measurement_source()
         end = address + length
         table = self._table
         if end <= INDIRECT_DATA_BASE or address >= _INDIRECT_DATA_END:

@@ -1,0 +1,520 @@
+"""n H54 firmwares stepped together: the servo law of servo.py on numpy arrays over joints.
+
+The law, the defaults and the overload rule are documented in sim_backend/servo.py (its
+docstring is the spec); this module runs them for all n actuators of a plant in one update per
+physics step instead of n Python calls:
+
+    command(angles, velocities)     before the step: per joint, torque on or off, the
+                                    velocity-loop input and the torque cap (position loop,
+                                    speed cap, velocity-loop integral with anti-windup; velocity
+                                    and torque modes; dynamic brake while off)
+    measure(torques, angles, velocities)
+                                    after the step: the measured current (with its noise) runs
+                                    the overload timers; the Present* items are NOT written here
+
+The control tables are touched only when they change or are read:
+- registers are decoded again only for a joint whose table's `revision` moved (a write);
+- the Present* items of a table are written when the bus reads them: a table with
+  `attach_measurement_source` calls back before any read that may cover them, and the bank
+  converts the last step's state to device units then (all joints at once, once per step).
+
+Angles and velocities in and out are physical (the plant's frame); the bank maps them through
+each actuator's mounting (direction, offset) to the device frame its firmware works in.
+
+Noise: the Present Current (and, with `velocity_noise`, Present Velocity) noise of every step is
+drawn from one seeded Generator in joint order (current, then velocity, for each joint whose rms
+is > 0), a block of standard normals at a time: the same values as one `normal(0, rms)` call per
+draw (numpy draws the same sequence of standard normals either way; tested).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from sim_backend.servo import (
+    AMPERE_PER_CURRENT_UNIT,
+    EXTENDED_POSITION_MODE,
+    OVERLOAD_BIT,
+    POSITION_MODE,
+    RAD_PER_PULSE,
+    RAD_S_PER_VELOCITY_UNIT,
+    VELOCITY_MODE,
+    ControlTable,
+    H54ServoParams,
+    Measurements,
+    Registers,
+    decode_registers,
+)
+
+_NORMAL_BLOCK = 4096  # standard normals drawn per call to the Generator
+_INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
+_INT16_MIN, _INT16_MAX = -32768, 32767
+
+
+class NormalStream:
+    """Standard normals of one seeded Generator, handed out in order, drawn a block at a time."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._buffer = np.empty(0)
+        self._next = 0
+
+    def take(self, count: int) -> np.ndarray:
+        end = self._next + count
+        if end > len(self._buffer):
+            rest = self._buffer[self._next :]
+            self._buffer = np.concatenate((rest, self._rng.standard_normal(_NORMAL_BLOCK + count)))
+            self._next, end = 0, count
+        drawn = self._buffer[self._next : end]
+        self._next = end
+        return drawn
+
+
+@dataclass
+class ServoCommands:
+    """What the firmwares ask of the motors this step (physical frame, arrays of n)."""
+
+    torque_on: np.ndarray  # bool
+    velocity_command_rad_s: np.ndarray  # the implicit velocity-loop input (includes the I term)
+    torque_limit_nm: np.ndarray  # 0 where torque is off
+    velocity_gain_nms_per_rad: np.ndarray  # kv; kept at its last torque-on value while off
+    brake_damping_nms_per_rad: np.ndarray  # the dynamic brake: 0 where torque is on
+
+
+class _Decoded:
+    """The registers of all joints as arrays (SI), refreshed per joint after a write."""
+
+    def __init__(self, n: int) -> None:
+        self.position_gain = np.zeros(n)
+        self.velocity_gain = np.ones(n)
+        self.integral_rate = np.zeros(n)
+        self.current_cap_a = np.zeros(n)
+        self.torque_cap_nm = np.zeros(n)
+        self.speed_cap = np.zeros(n)
+        self.goal_angle = np.zeros(n)
+        self.goal_velocity = np.zeros(n)
+        self.goal_torque_nm = np.zeros(n)
+        self.position_mode = np.zeros(n, dtype=bool)
+        self.velocity_mode = np.zeros(n, dtype=bool)
+        self.torque_mode = np.zeros(n, dtype=bool)
+        self.homing_offset_pulses = np.zeros(n)
+        self.moving_threshold = np.zeros(n)
+        self.torque_on = np.zeros(n, dtype=bool)
+        self.neg_speed_cap = np.zeros(n)
+        self.neg_torque_cap_nm = np.zeros(n)
+        self.overload_threshold_a = np.zeros(n)
+        self.all_position_mode = True
+        self.registers: list[Registers | None] = [None] * n
+
+    def first(self) -> SimpleNamespace:
+        """Joint 0's figures as Python numbers (a bank of one runs the law on them)."""
+        return SimpleNamespace(
+            **{
+                name: value[0].item() if isinstance(value, np.ndarray) else value
+                for name, value in vars(self).items()
+                if name != "registers"
+            }
+        )
+
+    def store(self, joint: int, r: Registers, torque_on: bool, params: H54ServoParams) -> None:
+        kt = params.torque_constant_nm_per_a
+        self.registers[joint] = r
+        self.position_gain[joint] = r.position_gain_per_s
+        self.velocity_gain[joint] = r.velocity_gain_nms_per_rad
+        self.integral_rate[joint] = r.integral_rate_nm_per_rad
+        self.current_cap_a[joint] = r.current_cap_a
+        self.torque_cap_nm[joint] = r.current_cap_a * kt
+        self.speed_cap[joint] = r.speed_cap_rad_s
+        self.goal_angle[joint] = r.goal_angle_rad
+        self.goal_velocity[joint] = r.goal_velocity_rad_s
+        self.goal_torque_nm[joint] = r.goal_torque_a * kt
+        mode = r.operating_mode
+        self.position_mode[joint] = mode in (POSITION_MODE, EXTENDED_POSITION_MODE)
+        self.velocity_mode[joint] = mode == VELOCITY_MODE
+        self.torque_mode[joint] = not (self.position_mode[joint] or self.velocity_mode[joint])
+        self.homing_offset_pulses[joint] = r.homing_offset_pulses
+        self.moving_threshold[joint] = r.moving_threshold_rad_s
+        self.torque_on[joint] = torque_on
+        self.neg_speed_cap[joint] = -self.speed_cap[joint]
+        self.neg_torque_cap_nm[joint] = -self.torque_cap_nm[joint]
+        self.overload_threshold_a[joint] = params.overload_current_fraction * r.current_cap_a
+        self.all_position_mode = bool(self.position_mode.all())
+
+
+class H54FirmwareBank:
+    """The firmwares of n actuators, one control table each (see the module docstring).
+
+    directions / offsets_rad: each actuator's mounting (device = direction * physical + offset).
+    rng: the measurement noise's Generator (None: no noise is drawn).
+    velocity_noise: draw Present Velocity noise too (the testbed does; the humanoid draws only
+        the current's, as it always has: its logs stay comparable run to run).
+    """
+
+    def __init__(
+        self,
+        tables: Sequence[ControlTable],
+        params: Sequence[H54ServoParams],
+        *,
+        directions: Sequence[int] | None = None,
+        offsets_rad: Sequence[float] | None = None,
+        rng: np.random.Generator | None = None,
+        velocity_noise: bool = True,
+    ) -> None:
+        n = len(tables)
+        if n == 0 or len(params) != n:
+            raise ValueError("a firmware bank needs one H54ServoParams per control table")
+        self.tables = list(tables)
+        self.params = list(params)
+        self.n = n
+        self.direction = np.asarray(directions if directions is not None else [1] * n, float)
+        self.offset_rad = np.asarray(offsets_rad if offsets_rad is not None else [0.0] * n, float)
+        if self.direction.shape != (n,) or self.offset_rad.shape != (n,):
+            raise ValueError("directions and offsets_rad need one entry per control table")
+
+        def figure(name: str) -> np.ndarray:
+            return np.array([getattr(p, name) for p in self.params], dtype=float)
+
+        self.torque_constant = figure("torque_constant_nm_per_a")
+        self.brake_damping = figure("dynamic_brake_damping_nms_per_rad")
+        self.overload_fraction = figure("overload_current_fraction")
+        self.overload_trip_s = figure("overload_trip_time_s")
+        self._current_rms = figure("current_noise_a")
+        self._velocity_rms = figure("velocity_noise_rad_s") if velocity_noise else np.zeros(n)
+        self._voltage_decivolts = [round(p.input_voltage_v * 10) for p in self.params]
+        self._temperature_c = [round(p.temperature_c) for p in self.params]
+        # the draws of one step, in stream order: (joint, is_velocity)
+        slots = [
+            (j, kind)
+            for j in range(n)
+            for kind, rms in ((False, self._current_rms[j]), (True, self._velocity_rms[j]))
+            if rms > 0
+        ]
+        self._stream = NormalStream(rng) if rng is not None and slots else None
+        self._draws_per_step = len(slots)
+        self._current_slots = np.array([i for i, (_, v) in enumerate(slots) if not v], int)
+        self._current_joints = np.array([j for j, v in slots if not v], int)
+        self._velocity_slots = np.array([i for i, (_, v) in enumerate(slots) if v], int)
+        self._velocity_joints = np.array([j for j, v in slots if v], int)
+        self._current_noise = np.zeros(n)
+        self._velocity_noise = np.zeros(n)
+
+        self.integral_nm = np.zeros(n)
+        self.overload_timer_s = np.zeros(n)
+        self.last_current_a = np.zeros(n)
+        self._decoded = _Decoded(n)
+        self._revisions = [-1] * n
+        self._gains = np.zeros(n)
+        self._first = SimpleNamespace()
+        self._direction_one = self.direction[0].item()
+        self._offset_one = self.offset_rad[0].item()
+        self._refresh_registers()
+        self._gains[:] = self._decoded.velocity_gain
+        # the last step's state in the device frame, for the lazy Present* items
+        self._angle = np.zeros(n)
+        self._velocity = np.zeros(n)
+        self._measured_velocity = np.zeros(n)
+        self._registers_measured: list[Registers | None] = list(self._decoded.registers)
+        self._sample = 0  # counts measure() calls
+        self._written = [0] * n  # the sample each table last got (-1: due after a report_joint)
+        self._units: tuple[int, list[list[int]]] | None = None
+        for joint, table in enumerate(self.tables):
+            attach = getattr(table, "attach_measurement_source", None)
+            if attach is not None:
+                attach(lambda joint=joint: self.write_measurements(joint))
+
+    # --- registers ----------------------------------------------------------------------------
+    def registers(self, joint: int) -> Registers:
+        """One joint's registers in SI, decoded again only after a write."""
+        self._refresh_registers()
+        registers = self._decoded.registers[joint]
+        assert registers is not None
+        return registers
+
+    def velocity_gains(self) -> np.ndarray:
+        self._refresh_registers()
+        return self._decoded.velocity_gain.copy()
+
+    def _refresh_registers(self) -> None:
+        revisions = [table.revision for table in self.tables]
+        if revisions == self._revisions:
+            return
+        for joint, (table, revision) in enumerate(zip(self.tables, revisions, strict=True)):
+            if revision != self._revisions[joint]:
+                params = self.params[joint]
+                self._decoded.store(
+                    joint, decode_registers(table, params), table.torque_enabled, params
+                )
+        self._revisions = [table.revision for table in self.tables]
+        if self.n == 1:
+            self._first = self._decoded.first()
+
+    # --- one physics step ---------------------------------------------------------------------
+    def command(
+        self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray, dt_s: float
+    ) -> ServoCommands:
+        """The velocity-loop inputs and torque caps for this step (servo.py's law on arrays)."""
+        self._refresh_registers()
+        d = self._decoded
+        on = d.torque_on
+        direction = self.direction
+        command, self.integral_nm = _velocity_loop(
+            _ARRAY,
+            d,
+            direction * angles_rad + self.offset_rad,
+            direction * velocities_rad_s,
+            self.integral_nm,
+            dt_s,
+        )
+        np.copyto(self._gains, d.velocity_gain, where=on)
+        return ServoCommands(
+            torque_on=on.copy(),
+            velocity_command_rad_s=np.where(on, direction * command, 0.0),
+            torque_limit_nm=np.where(on, d.torque_cap_nm, 0.0),
+            velocity_gain_nms_per_rad=self._gains.copy(),
+            brake_damping_nms_per_rad=np.where(on, 0.0, self.brake_damping),
+        )
+
+    def command_one(
+        self, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> tuple[bool, float, float]:
+        """`command` for a bank of one in Python numbers (numpy costs more than the law on one
+        joint): (torque on, velocity-loop input, torque cap), physical frame."""
+        self._refresh_registers()
+        d = self._first
+        direction = self._direction_one
+        command, integral = _velocity_loop(
+            _SCALAR,
+            d,
+            direction * angle_rad + self._offset_one,
+            direction * velocity_rad_s,
+            self.integral_nm[0].item(),
+            dt_s,
+        )
+        self.integral_nm[0] = integral
+        if not d.torque_on:
+            return False, 0.0, 0.0
+        return True, direction * command, d.torque_cap_nm
+
+    def measure(
+        self,
+        torques_nm: np.ndarray,
+        angles_rad: np.ndarray,
+        velocities_rad_s: np.ndarray,
+        dt_s: float,
+        *,
+        current_noise_a: np.ndarray | None = None,
+        velocity_noise_rad_s: np.ndarray | None = None,
+    ) -> None:
+        """After the step: the measured current runs the overload protection; the state is kept
+        for the Present* items (written when read). The noise is this step's draw unless given."""
+        self._refresh_registers()
+        if current_noise_a is None or velocity_noise_rad_s is None:
+            current_noise_a, velocity_noise_rad_s = self._draw_noise()
+        direction = self.direction
+        self._angle = direction * angles_rad + self.offset_rad
+        self._velocity = direction * velocities_rad_s
+        self._measured_velocity = self._velocity + velocity_noise_rad_s
+        self.last_current_a = direction * torques_nm / self.torque_constant + current_noise_a
+        d = self._decoded
+        self.overload_timer_s = _overload_timer(
+            _ARRAY, d, abs(self.last_current_a), self.overload_timer_s, dt_s
+        )
+        tripped = self.overload_timer_s >= self.overload_trip_s
+        if tripped.any():
+            self._trip(tripped)
+        self._registers_measured = list(d.registers)
+        self._sample += 1
+
+    def measure_one(
+        self, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> None:
+        """`measure` for a bank of one in Python numbers (see `command_one`)."""
+        self._refresh_registers()
+        self._measure_joint(0, torque_nm, angle_rad, velocity_rad_s, dt_s)
+        self._registers_measured = list(self._decoded.registers)
+        self._sample += 1
+
+    def report_joint(
+        self, joint: int, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> None:
+        """`measure` for one joint alone (at power-on, after its REBOOT), drawing its noise as
+        a step does."""
+        self._refresh_registers()
+        self._measure_joint(joint, torque_nm, angle_rad, velocity_rad_s, dt_s)
+        self._registers_measured[joint] = self._decoded.registers[joint]
+        self._written[joint] = -1  # this joint's Present* items are due again
+        self._units = None
+
+    def _measure_joint(
+        self, joint: int, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> None:
+        current_noise, velocity_noise = self._draw_joint_noise(joint)
+        direction = self.direction[joint].item()
+        velocity = direction * velocity_rad_s
+        self._angle[joint] = direction * angle_rad + self.offset_rad[joint].item()
+        self._velocity[joint] = velocity
+        self._measured_velocity[joint] = velocity + velocity_noise
+        current = direction * torque_nm / self.torque_constant[joint].item() + current_noise
+        self.last_current_a[joint] = current
+        d = self._first if self.n == 1 else _JointView(self._decoded, joint)
+        timer = _overload_timer(_SCALAR, d, abs(current), self.overload_timer_s[joint].item(), dt_s)
+        self.overload_timer_s[joint] = timer
+        if timer >= self.overload_trip_s[joint]:
+            self._trip(joint)
+
+    def on_reboot(self, joint: int) -> None:
+        self.integral_nm[joint] = 0.0
+        self.overload_timer_s[joint] = 0.0
+
+    def _draw_noise(self) -> tuple[np.ndarray, np.ndarray]:
+        """This step's noise of every joint (current, velocity), in stream order."""
+        current, velocity = self._current_noise, self._velocity_noise
+        if self._stream is None:
+            return current, velocity
+        draws = self._stream.take(self._draws_per_step)
+        joints, slots = self._current_joints, self._current_slots
+        current[joints] = draws[slots] * self._current_rms[joints]
+        joints, slots = self._velocity_joints, self._velocity_slots
+        velocity[joints] = draws[slots] * self._velocity_rms[joints]
+        return current, velocity
+
+    def _draw_joint_noise(self, joint: int) -> tuple[float, float]:
+        """One joint's noise (current, then velocity), drawn as a step draws it."""
+        noise = [0.0, 0.0]
+        if self._stream is not None:
+            for kind, rms in enumerate((self._current_rms, self._velocity_rms)):
+                if rms[joint] > 0:
+                    noise[kind] = self._stream.take(1)[0].item() * rms[joint].item()
+        return noise[0], noise[1]
+
+    def _trip(self, tripped: Any) -> None:
+        """The Overload bit for these joints (a mask, or one index); their timers restart."""
+        joints = [tripped] if isinstance(tripped, int) else np.flatnonzero(tripped).tolist()
+        for joint in joints:
+            self.tables[joint].raise_hardware_error(OVERLOAD_BIT)
+            self.overload_timer_s[joint] = 0.0
+
+    # --- the Present* items, when the bus reads them ------------------------------------------
+    def measurements(self, joint: int) -> Measurements:
+        """Joint `joint`'s Present* items from the last measured state [device units]."""
+        units = self._units
+        if units is None or units[0] != self._sample:
+            units = (self._sample, self._device_units())
+            self._units = units
+        moving, position, velocity, current = units[1]
+        return Measurements(
+            moving=moving[joint],
+            position_pulses=position[joint],
+            velocity_units=velocity[joint],
+            current_units=current[joint],
+            input_voltage_decivolts=self._voltage_decivolts[joint],
+            temperature_c=self._temperature_c[joint],
+        )
+
+    def write_measurements(self, joint: int) -> None:
+        """Write the Present* items into joint `joint`'s table if the last step's are not
+        there yet (the table calls this before a read that may cover them)."""
+        if self._written[joint] != self._sample:
+            self._written[joint] = self._sample
+            self.tables[joint].set_measurements(self.measurements(joint))
+
+    def write_all_measurements(self) -> None:
+        for joint in range(self.n):
+            self.write_measurements(joint)
+
+    def _device_units(self) -> list[list[int]]:
+        """The state in the control table's units (e-Manual units; half-even rounding as
+        Python's round, saturated to the items' sizes), for all joints at once."""
+        registers = self._registers_measured
+        homing = np.array([r.homing_offset_pulses if r else 0 for r in registers], float)
+        threshold = np.array([r.moving_threshold_rad_s if r else 0.0 for r in registers])
+        moving = np.abs(self._velocity) > threshold
+        position = np.rint(self._angle / RAD_PER_PULSE - homing)
+        velocity = np.rint(self._measured_velocity / RAD_S_PER_VELOCITY_UNIT)
+        current = np.rint(self.last_current_a / AMPERE_PER_CURRENT_UNIT)
+        return [
+            moving.astype(int).tolist(),
+            np.clip(position, _INT32_MIN, _INT32_MAX).astype(np.int64).tolist(),
+            np.clip(velocity, _INT32_MIN, _INT32_MAX).astype(np.int64).tolist(),
+            np.clip(current, _INT16_MIN, _INT16_MAX).astype(np.int64).tolist(),
+        ]
+
+
+class _JointView:
+    """One joint's decoded figures as Python numbers, read from the arrays on demand."""
+
+    def __init__(self, decoded: _Decoded, joint: int) -> None:
+        self._decoded = decoded
+        self._joint = joint
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._decoded, name)[self._joint].item()
+
+
+class _ArrayOps:
+    """The law's selections on numpy arrays (elementwise, as the scalar ones)."""
+
+    @staticmethod
+    def clip(value: Any, low: Any, high: Any) -> Any:
+        return np.maximum(low, np.minimum(high, value))
+
+    where = staticmethod(np.where)
+    maximum = staticmethod(np.maximum)
+
+
+class _ScalarOps:
+    """The law's selections on Python numbers."""
+
+    @staticmethod
+    def clip(value: Any, low: Any, high: Any) -> Any:
+        return max(low, min(high, value))
+
+    @staticmethod
+    def where(condition: Any, if_true: Any, if_false: Any) -> Any:
+        return if_true if condition else if_false
+
+    maximum = staticmethod(max)
+
+
+_ARRAY, _SCALAR = _ArrayOps(), _ScalarOps()
+
+
+def _velocity_loop(
+    ops: Any, d: Any, angle: Any, velocity: Any, integral: Any, dt_s: float
+) -> tuple[Any, Any]:
+    """servo.py's cascade, device frame: (the velocity-loop input, the new integral [N m]).
+
+    Position modes: w* = Kpp (goal - angle) clipped to the speed cap; velocity mode: w* = Goal
+    Velocity; the torque kv (w* - w) + integral is clipped to the cap by MuJoCo, and the
+    integral (of kv/Ti (w* - w)) integrates only while that torque is not clipped or it is
+    unwinding, itself clipped to the cap. Torque mode: the current loop follows Goal Torque
+    (the integral is left alone). Torque off: the integral resets. Written once for numpy
+    arrays (`_ARRAY`) and Python numbers (`_SCALAR`)."""
+    speed_command = ops.clip(d.position_gain * (d.goal_angle - angle), d.neg_speed_cap, d.speed_cap)
+    if not d.all_position_mode:
+        speed_command = ops.where(d.velocity_mode, d.goal_velocity, speed_command)
+    speed_error = speed_command - velocity
+    unclipped = d.velocity_gain * speed_error + integral
+    integrate = (abs(unclipped) < d.torque_cap_nm) | (unclipped * speed_error < 0)
+    integrated = ops.clip(
+        integral + d.integral_rate * speed_error * dt_s, d.neg_torque_cap_nm, d.torque_cap_nm
+    )
+    new_integral = ops.where(integrate, integrated, integral)
+    command = speed_command + new_integral / d.velocity_gain
+    if not d.all_position_mode:
+        new_integral = ops.where(d.torque_mode, integral, new_integral)
+        command = ops.where(d.torque_mode, velocity + d.goal_torque_nm / d.velocity_gain, command)
+    return command, ops.where(d.torque_on, new_integral, 0.0)
+
+
+def _overload_timer(ops: Any, d: Any, current_abs_a: Any, timer_s: Any, dt_s: float) -> Any:
+    """servo.py's overload rule: the timer runs up while |I| >= the fraction of the current
+    cap, down (at the same rate) below it, never below 0; reset while torque is off."""
+    near_limit = current_abs_a >= d.overload_threshold_a
+    timer_s = ops.where(near_limit, timer_s + dt_s, timer_s - dt_s)
+    return ops.where(d.torque_on, ops.maximum(0.0, timer_s), 0.0)
