@@ -103,14 +103,14 @@ class Measurements:
 
 @dataclass(frozen=True)
 class Registers:
-    """The firmware's inputs decoded from the control table (SI), valid for one revision."""
+    """The firmware's inputs decoded from the control table (SI), valid for one revision
+    (Goal Position apart: `goal_angle_rad`, decoded alone when only it was written)."""
 
     position_gain_per_s: float
     velocity_gain_nms_per_rad: float
     integral_rate_nm_per_rad: float
     current_cap_a: float
     speed_cap_rad_s: float
-    goal_angle_rad: float
     goal_velocity_rad_s: float
     goal_torque_a: float
     operating_mode: int
@@ -173,6 +173,12 @@ class ServoOutput:
     torque_limit_nm: float
 
 
+def goal_angle_rad(goal_position_pulses: int, homing_offset_pulses: int) -> float:
+    """Goal Position (596) in the device frame [rad]: the Homing Offset (20) added, as Present
+    Position subtracts it."""
+    return (goal_position_pulses + homing_offset_pulses) * RAD_PER_PULSE
+
+
 def decode_registers(table: ControlTable, params: H54ServoParams) -> Registers:
     """The firmware's inputs in SI from its control table (each gain scaled linearly with its
     register, the factory default register mapping to the SI default of `params`)."""
@@ -196,7 +202,6 @@ def decode_registers(table: ControlTable, params: H54ServoParams) -> Registers:
         / p.default_velocity_i_gain_register,
         current_cap_a=current_units * AMPERE_PER_CURRENT_UNIT,
         speed_cap_rad_s=speed_units * RAD_S_PER_VELOCITY_UNIT,
-        goal_angle_rad=(item("Goal Position") + homing_offset) * RAD_PER_PULSE,
         goal_velocity_rad_s=goal_velocity * RAD_S_PER_VELOCITY_UNIT,
         goal_torque_a=goal_torque * AMPERE_PER_CURRENT_UNIT,
         operating_mode=item("Operating Mode"),
@@ -262,7 +267,7 @@ class H54Firmware:
         return self.registers.speed_cap_rad_s
 
     def goal_angle_rad(self) -> float:
-        return self.registers.goal_angle_rad
+        return self.bank.goal_angle_rad(self.joint)
 
     # --- one physics step of a bank of one ----------------------------------------------------
     def compute(

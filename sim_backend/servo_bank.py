@@ -23,8 +23,8 @@ each actuator's mounting (direction, offset) to the device frame its firmware wo
 
 Noise: the Present Current (and, with `velocity_noise`, Present Velocity) noise of every step is
 drawn from one seeded Generator in joint order (current, then velocity, for each joint whose rms
-is > 0), a block of standard normals at a time: the same values as one `normal(0, rms)` call per
-draw (numpy draws the same sequence of standard normals either way; tested).
+is > 0), a block of standard normals at a time (`NormalStream`): the same values as one
+`normal(0, rms)` call per draw.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from sim_backend.normal_stream import NormalStream
 from sim_backend.servo import (
     AMPERE_PER_CURRENT_UNIT,
     EXTENDED_POSITION_MODE,
@@ -49,30 +50,11 @@ from sim_backend.servo import (
     Measurements,
     Registers,
     decode_registers,
+    goal_angle_rad,
 )
 
-_NORMAL_BLOCK = 4096  # standard normals drawn per call to the Generator
 _INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
 _INT16_MIN, _INT16_MAX = -32768, 32767
-
-
-class NormalStream:
-    """Standard normals of one seeded Generator, handed out in order, drawn a block at a time."""
-
-    def __init__(self, rng: np.random.Generator) -> None:
-        self._rng = rng
-        self._buffer = np.empty(0)
-        self._next = 0
-
-    def take(self, count: int) -> np.ndarray:
-        end = self._next + count
-        if end > len(self._buffer):
-            rest = self._buffer[self._next :]
-            self._buffer = np.concatenate((rest, self._rng.standard_normal(_NORMAL_BLOCK + count)))
-            self._next, end = 0, count
-        drawn = self._buffer[self._next : end]
-        self._next = end
-        return drawn
 
 
 @dataclass
@@ -130,7 +112,6 @@ class _Decoded:
         self.current_cap_a[joint] = r.current_cap_a
         self.torque_cap_nm[joint] = r.current_cap_a * kt
         self.speed_cap[joint] = r.speed_cap_rad_s
-        self.goal_angle[joint] = r.goal_angle_rad
         self.goal_velocity[joint] = r.goal_velocity_rad_s
         self.goal_torque_nm[joint] = r.goal_torque_a * kt
         mode = r.operating_mode
@@ -208,6 +189,7 @@ class H54FirmwareBank:
         self.last_current_a = np.zeros(n)
         self._decoded = _Decoded(n)
         self._revisions = [-1] * n
+        self._goal_writes: list[int | None] = [None] * n
         self._gains = np.zeros(n)
         self._first = SimpleNamespace()
         self._direction_one = self.direction[0].item()
@@ -239,17 +221,37 @@ class H54FirmwareBank:
         self._refresh_registers()
         return self._decoded.velocity_gain.copy()
 
+    def goal_angle_rad(self, joint: int) -> float:
+        self._refresh_registers()
+        return self._decoded.goal_angle[joint].item()
+
     def _refresh_registers(self) -> None:
+        """Decode the registers of the joints whose table was written since the last call:
+        only Goal Position when nothing else was (the host writes it every tick)."""
         revisions = [table.revision for table in self.tables]
         if revisions == self._revisions:
             return
+        decoded = self._decoded
         for joint, (table, revision) in enumerate(zip(self.tables, revisions, strict=True)):
-            if revision != self._revisions[joint]:
+            if revision == self._revisions[joint]:
+                continue
+            goal_writes = getattr(table, "goal_position_writes", None)
+            registers = decoded.registers[joint]
+            goal_only = (
+                registers is not None
+                and goal_writes is not None
+                and revision - self._revisions[joint] == goal_writes - self._goal_writes[joint]
+            )
+            if not goal_only:
                 params = self.params[joint]
-                self._decoded.store(
-                    joint, decode_registers(table, params), table.torque_enabled, params
-                )
-        self._revisions = [table.revision for table in self.tables]
+                registers = decode_registers(table, params)
+                decoded.store(joint, registers, table.torque_enabled, params)
+            assert registers is not None
+            decoded.goal_angle[joint] = goal_angle_rad(
+                table.item("Goal Position"), registers.homing_offset_pulses
+            )
+            self._goal_writes[joint] = goal_writes
+        self._revisions = revisions
         if self.n == 1:
             self._first = self._decoded.first()
 
@@ -389,7 +391,7 @@ class H54FirmwareBank:
         if self._stream is not None:
             for kind, rms in enumerate((self._current_rms, self._velocity_rms)):
                 if rms[joint] > 0:
-                    noise[kind] = self._stream.take(1)[0].item() * rms[joint].item()
+                    noise[kind] = self._stream.next() * rms[joint].item()
         return noise[0], noise[1]
 
     def _trip(self, tripped: Any) -> None:

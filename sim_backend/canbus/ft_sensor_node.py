@@ -124,7 +124,7 @@ class ForceTorqueSensorNode(CanopenSlave):
             raise ValueError(f"node {self.node_id}: the wrench source gave {values!r}")
         counts = values * self._counts_per_unit
         if mode == "noisy" and self.fault.noise_counts_rms > 0.0:
-            counts = counts + self._rng.normal(0.0, self.fault.noise_counts_rms, _N_CHANNELS)
+            counts = counts + self._normals.take(_N_CHANNELS) * self.fault.noise_counts_rms
         self._latched = [
             max(_INT16_MIN, min(_INT16_MAX, math.floor(value + 0.5))) for value in counts
         ]

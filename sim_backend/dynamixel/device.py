@@ -121,8 +121,11 @@ class H54Device:
         # `attach_measurement_source`), not after every physics step.
         self._measurement_source: Callable[[], None] | None = None
         # Changes with every write but the firmware's measurements: the firmware re-decodes
-        # its registers only then.
+        # its registers only then; only Goal Position when all writes since were WRITEs of
+        # exactly Goal Position (counted here: the host's every tick).
         self.revision = 0
+        self.goal_position_writes = 0
+        self._goal_position_address = layout["Goal Position"].address
         # Items that are neither Indirect Data nor Indirect Address: read and written as plain
         # bytes (name -> address, end, size, signed), the fast path of item/set_item.
         self._direct_items: dict[str, tuple[int, int, int, bool]] = {
@@ -130,6 +133,12 @@ class H54Device:
             for item in layout.items
             if not (INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END)
             and not (item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END)
+        }
+        # Plain items by (address, size): a write of exactly one of them takes a short path.
+        self._whole_items: dict[tuple[int, int], ControlItem] = {
+            (item.address, item.size): item
+            for item in layout.items
+            if item.name in self._direct_items
         }
         self._measured_names = frozenset(item.name for item in layout.items if item.measured)
         self._measurement_slots = tuple(self._direct_items[name] for name in _MEASUREMENT_ITEMS)
@@ -313,6 +322,9 @@ class H54Device:
 
     def write(self, address: int, data: bytes) -> int:
         """WRITE: all of it or none of it; returns the error number."""
+        whole_item = self._whole_items.get((address, len(data)))
+        if whole_item is not None:
+            return self._write_whole_item(whole_item, bytes(data))
         error, plan = self._plan_write(address, data)
         if error == ErrorCode.NONE:
             self.revision += 1
@@ -423,6 +435,48 @@ class H54Device:
             return -self.item(bound[1:])
         return self.item(bound)
 
+    def _refused(self, item: ControlItem | None, torque_on: bool) -> bool:
+        """Access Error for a write to this item: none there, read-only, EEPROM while torque is
+        on, or its gate closed."""
+        if item is None or item.access is Access.READ:
+            return True
+        if item.area is Area.EEPROM and torque_on:
+            return True
+        if item.writable_when is not None:
+            gate_name, gate_value = item.writable_when
+            if self.item(gate_name) != gate_value:
+                return True
+        return False
+
+    def _value_error(self, values: list[tuple[ControlItem, int]]) -> int:
+        """Range, then limit, then shutdown errors of the values a write would store."""
+        for item, value in values:
+            if not item.in_range(value):
+                return ErrorCode.DATA_RANGE
+        for item, value in values:
+            if item.name == "Goal Position" and self.item("Operating Mode") == 4:
+                continue  # Extended Position Control Mode ignores the position limits
+            low = self._limit_value(item.limit_low)
+            high = self._limit_value(item.limit_high)
+            if (low is not None and value < low) or (high is not None and value > high):
+                return ErrorCode.DATA_LIMIT
+        for item, value in values:
+            if item.name == _TORQUE_ENABLE and value == 1 and self._in_shutdown:
+                return ErrorCode.RESULT_FAIL
+        return ErrorCode.NONE
+
+    def _write_whole_item(self, item: ControlItem, data: bytes) -> int:
+        """WRITE of exactly one plain item (the host's Goal Position every tick): the checks
+        of `_plan_write` for that item, without walking it byte by byte."""
+        if self._refused(item, self.torque_enabled):
+            return ErrorCode.ACCESS
+        error = self._value_error([(item, item.decode(data))])
+        if error == ErrorCode.NONE:
+            self.revision += 1
+            self.goal_position_writes += item.address == self._goal_position_address
+            self._table[item.address : item.end] = data
+        return error
+
     def _plan_write(self, address: int, data: bytes) -> tuple[int, list[tuple[int, int]]]:
         """Check a write of `data` at `address`; return (error, [(physical address, byte)])."""
         layout = self._layout
@@ -436,14 +490,9 @@ class H54Device:
         for offset, byte in enumerate(data):
             physical = self._physical(address + offset)
             item = layout.item_at(physical)
-            if item is None or item.access is Access.READ:
+            if self._refused(item, torque_on):
                 return ErrorCode.ACCESS, []
-            if item.area is Area.EEPROM and torque_on:
-                return ErrorCode.ACCESS, []
-            if item.writable_when is not None:
-                gate_name, gate_value = item.writable_when
-                if self.item(gate_name) != gate_value:
-                    return ErrorCode.ACCESS, []
+            assert item is not None
             touched.setdefault(item.name, (item, {}))[1][physical - item.address] = byte
             plan.append((physical, byte))
         values: list[tuple[ControlItem, int]] = []
@@ -452,17 +501,5 @@ class H54Device:
                 return ErrorCode.DATA_LENGTH, []
             raw = bytes(item_bytes[k] for k in range(item.size))
             values.append((item, item.decode(raw)))
-        for item, value in values:
-            if not item.in_range(value):
-                return ErrorCode.DATA_RANGE, []
-        for item, value in values:
-            if item.name == "Goal Position" and self.item("Operating Mode") == 4:
-                continue  # Extended Position Control Mode ignores the position limits
-            low = self._limit_value(item.limit_low)
-            high = self._limit_value(item.limit_high)
-            if (low is not None and value < low) or (high is not None and value > high):
-                return ErrorCode.DATA_LIMIT, []
-        for item, value in values:
-            if item.name == _TORQUE_ENABLE and value == 1 and self._in_shutdown:
-                return ErrorCode.RESULT_FAIL, []
-        return ErrorCode.NONE, plan
+        error = self._value_error(values)
+        return error, plan if error == ErrorCode.NONE else []

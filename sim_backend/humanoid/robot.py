@@ -104,6 +104,7 @@ class EmulatedRobot:
         self._dt = self.plant.physics_timestep_s
         self._no_push = np.zeros(3)
         self.clock = StepClock(self._dt)  # time in whole physics steps
+        self._link_cache: tuple[int, list[float], list[float]] = (-1, [], [])
         self.plant.place_standing(initial_leg_angles_rad, support_feet)
         for joint, table in enumerate(self.tables):
             table.set_item("Position P Gain", self.truth.position_gain_registers[joint])
@@ -174,11 +175,24 @@ class EmulatedRobot:
     # --- what the sensors read (sources for the bus emulators) --------------------------------
     def link_angle_rad(self, joint: int) -> float:
         """True link angle of one joint (the CAN link encoder quantises it)."""
-        return self.plant.joint_link_angle_rad(joint)
+        return self._link_state()[0][joint]
 
     def link_velocity_rad_s(self, joint: int) -> float:
         """True link velocity of one joint."""
-        return self.plant.joint_link_velocity_rad_s(joint)
+        return self._link_state()[1][joint]
+
+    def _link_state(self) -> tuple[list[float], list[float]]:
+        """The 12 link angles and velocities after the last physics step, computed once per
+        step (12 encoders read them at every SYNC); only `step` moves the plant."""
+        steps = self.clock.steps
+        if self._link_cache[0] != steps:
+            plant = self.plant
+            self._link_cache = (
+                steps,
+                plant.link_angle_rad.tolist(),
+                plant.link_velocity_rad_s.tolist(),
+            )
+        return self._link_cache[1], self._link_cache[2]
 
     def foot_wrench(self, side: int) -> tuple[np.ndarray, np.ndarray]:
         """The ground's (force [N], moment [N m]) on foot `side` in its sensor frame."""

@@ -159,8 +159,13 @@ RANDOM_WRITES = {
 
 
 def random_write(rng: np.random.Generator, pair: tuple[H54Device, H54Device]) -> None:
-    """The same firmware-side write on both tables (registers, mode, torque toggle)."""
-    kind = int(rng.integers(0, 12))
+    """The same write on both tables: firmware-side (registers, mode, torque toggle), or Goal
+    Position the host's way (a WRITE packet's rules; the bank then decodes it alone)."""
+    kind = int(rng.integers(0, 14))
+    if kind >= 12:
+        value = int(rng.integers(-60_000, 60_000))
+        assert len({device.write_item("Goal Position", value) for device in pair}) == 1
+        return
     if kind < len(RANDOM_WRITES):
         name = list(RANDOM_WRITES)[kind]
         value = int(rng.integers(*RANDOM_WRITES[name]))
@@ -218,7 +223,7 @@ def test_the_bank_equals_the_per_joint_law_byte_for_byte(n_joints: int, seed: in
             device.set_item("Torque Enable", 1)
     trips = reboots = 0
     for _ in range(1500):
-        for _ in range(int(rng.integers(0, 3))):
+        for _ in range(int(rng.integers(0, 4))):
             joint = int(rng.integers(0, n_joints))
             random_write(rng, (bank_devices[joint], ref_devices[joint]))
         if rng.random() < 0.01:
