@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
@@ -89,9 +89,9 @@ class ControlTable(Protocol):
     def set_measurements(self, measurements: Measurements) -> None: ...
 
 
-@dataclass(frozen=True)
-class Measurements:
-    """The Present* items the firmware writes after each physics step [device units]."""
+class Measurements(NamedTuple):
+    """The Present* items the firmware writes when they are read [device units] (a tuple: one
+    per device per tick, made cheaply)."""
 
     moving: int
     position_pulses: int

@@ -1,8 +1,8 @@
 """n H54 firmwares stepped together: the servo law of servo.py on numpy arrays over joints.
 
 The law, the defaults and the overload rule are documented in sim_backend/servo.py (its
-docstring is the spec); this module runs them for all n actuators of a plant in one update per
-physics step instead of n Python calls:
+docstring is the spec) and written out in servo_law.py; this module runs them for all n
+actuators of a plant in one update per physics step instead of n Python calls:
 
     command(angles, velocities)     before the step: per joint, torque on or off, the
                                     velocity-loop input and the torque cap (position loop,
@@ -13,7 +13,8 @@ physics step instead of n Python calls:
                                     the overload timers; the Present* items are NOT written here
 
 The control tables are touched only when they change or are read:
-- registers are decoded again only for a joint whose table's `revision` moved (a write);
+- registers are decoded again only for a joint whose table's `revision` moved (a write), only
+  Goal Position when nothing else was written (`goal_position_writes`: the host's every tick);
 - the Present* items of a table are written when the bus reads them: a table with
   `attach_measurement_source` calls back before any read that may cover them, and the bank
   converts the last step's state to device units then (all joints at once, once per step).
@@ -38,12 +39,9 @@ import numpy as np
 
 from sim_backend.normal_stream import NormalStream
 from sim_backend.servo import (
-    AMPERE_PER_CURRENT_UNIT,
     EXTENDED_POSITION_MODE,
     OVERLOAD_BIT,
     POSITION_MODE,
-    RAD_PER_PULSE,
-    RAD_S_PER_VELOCITY_UNIT,
     VELOCITY_MODE,
     ControlTable,
     H54ServoParams,
@@ -52,9 +50,7 @@ from sim_backend.servo import (
     decode_registers,
     goal_angle_rad,
 )
-
-_INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
-_INT16_MIN, _INT16_MAX = -32768, 32767
+from sim_backend.servo_law import ARRAY, SCALAR, overload_timer, to_device_units, velocity_loop
 
 
 @dataclass
@@ -91,6 +87,7 @@ class _Decoded:
         self.neg_torque_cap_nm = np.zeros(n)
         self.overload_threshold_a = np.zeros(n)
         self.all_position_mode = True
+        self.all_on = False
         self.registers: list[Registers | None] = [None] * n
 
     def first(self) -> SimpleNamespace:
@@ -125,6 +122,7 @@ class _Decoded:
         self.neg_torque_cap_nm[joint] = -self.torque_cap_nm[joint]
         self.overload_threshold_a[joint] = params.overload_current_fraction * r.current_cap_a
         self.all_position_mode = bool(self.position_mode.all())
+        self.all_on = bool(self.torque_on.all())
 
 
 class H54FirmwareBank:
@@ -162,7 +160,6 @@ class H54FirmwareBank:
 
         self.torque_constant = figure("torque_constant_nm_per_a")
         self.brake_damping = figure("dynamic_brake_damping_nms_per_rad")
-        self.overload_fraction = figure("overload_current_fraction")
         self.overload_trip_s = figure("overload_trip_time_s")
         self._current_rms = figure("current_noise_a")
         self._velocity_rms = figure("velocity_noise_rad_s") if velocity_noise else np.zeros(n)
@@ -183,6 +180,13 @@ class H54FirmwareBank:
         self._velocity_joints = np.array([j for j, v in slots if v], int)
         self._current_noise = np.zeros(n)
         self._velocity_noise = np.zeros(n)
+        self._velocity_noisy = len(self._velocity_joints) > 0
+        # the usual draw: the current's of every joint, in joint order
+        self._every_current = (
+            self._current_slots.tolist() == list(range(n)) == (self._current_joints.tolist())
+        )
+        self._identity_mounting = bool(np.all(self.direction == 1) and not self.offset_rad.any())
+        self._no_brakes = np.zeros(n)
 
         self.integral_nm = np.zeros(n)
         self.overload_timer_s = np.zeros(n)
@@ -190,12 +194,12 @@ class H54FirmwareBank:
         self._decoded = _Decoded(n)
         self._revisions = [-1] * n
         self._goal_writes: list[int | None] = [None] * n
-        self._gains = np.zeros(n)
+        self._gains = np.zeros(n)  # kv per joint, kept at its last torque-on value while off
         self._first = SimpleNamespace()
         self._direction_one = self.direction[0].item()
         self._offset_one = self.offset_rad[0].item()
         self._refresh_registers()
-        self._gains[:] = self._decoded.velocity_gain
+        self._gains = self._decoded.velocity_gain.copy()
         # the last step's state in the device frame, for the lazy Present* items
         self._angle = np.zeros(n)
         self._velocity = np.zeros(n)
@@ -259,27 +263,38 @@ class H54FirmwareBank:
     def command(
         self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray, dt_s: float
     ) -> ServoCommands:
-        """The velocity-loop inputs and torque caps for this step (servo.py's law on arrays)."""
+        """The velocity-loop inputs and torque caps for this step (servo.py's law on arrays).
+        The arrays returned are valid until the next call."""
         self._refresh_registers()
         d = self._decoded
         on = d.torque_on
-        direction = self.direction
-        command, self.integral_nm = _velocity_loop(
-            _ARRAY,
-            d,
-            direction * angles_rad + self.offset_rad,
-            direction * velocities_rad_s,
-            self.integral_nm,
-            dt_s,
+        angles, velocities = self._device_frame(angles_rad, velocities_rad_s)
+        command, self.integral_nm = velocity_loop(
+            ARRAY, d, angles, velocities, self.integral_nm, dt_s
         )
-        np.copyto(self._gains, d.velocity_gain, where=on)
+        if not self._identity_mounting:
+            command = self.direction * command
+        if d.all_on:  # the usual case: no selection to make
+            self._gains = d.velocity_gain.copy()
+            return ServoCommands(on, command, d.torque_cap_nm, self._gains, self._no_brakes)
+        self._gains = np.where(on, d.velocity_gain, self._gains)
         return ServoCommands(
-            torque_on=on.copy(),
-            velocity_command_rad_s=np.where(on, direction * command, 0.0),
+            torque_on=on,
+            velocity_command_rad_s=np.where(on, command, 0.0),
             torque_limit_nm=np.where(on, d.torque_cap_nm, 0.0),
-            velocity_gain_nms_per_rad=self._gains.copy(),
+            velocity_gain_nms_per_rad=self._gains,
             brake_damping_nms_per_rad=np.where(on, 0.0, self.brake_damping),
         )
+
+    def _device_frame(
+        self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Physical angles and velocities in each actuator's frame (device = direction x
+        physical + offset); new arrays."""
+        if self._identity_mounting:
+            return angles_rad.copy(), velocities_rad_s.copy()
+        direction = self.direction
+        return direction * angles_rad + self.offset_rad, direction * velocities_rad_s
 
     def command_one(
         self, angle_rad: float, velocity_rad_s: float, dt_s: float
@@ -289,8 +304,8 @@ class H54FirmwareBank:
         self._refresh_registers()
         d = self._first
         direction = self._direction_one
-        command, integral = _velocity_loop(
-            _SCALAR,
+        command, integral = velocity_loop(
+            SCALAR,
             d,
             direction * angle_rad + self._offset_one,
             direction * velocity_rad_s,
@@ -317,14 +332,15 @@ class H54FirmwareBank:
         self._refresh_registers()
         if current_noise_a is None or velocity_noise_rad_s is None:
             current_noise_a, velocity_noise_rad_s = self._draw_noise()
-        direction = self.direction
-        self._angle = direction * angles_rad + self.offset_rad
-        self._velocity = direction * velocities_rad_s
-        self._measured_velocity = self._velocity + velocity_noise_rad_s
-        self.last_current_a = direction * torques_nm / self.torque_constant + current_noise_a
+        self._angle, self._velocity = self._device_frame(angles_rad, velocities_rad_s)
+        self._measured_velocity = (
+            self._velocity + velocity_noise_rad_s if self._velocity_noisy else self._velocity
+        )
+        torques = torques_nm if self._identity_mounting else self.direction * torques_nm
+        self.last_current_a = torques / self.torque_constant + current_noise_a
         d = self._decoded
-        self.overload_timer_s = _overload_timer(
-            _ARRAY, d, abs(self.last_current_a), self.overload_timer_s, dt_s
+        self.overload_timer_s = overload_timer(
+            ARRAY, d, abs(self.last_current_a), self.overload_timer_s, dt_s
         )
         tripped = self.overload_timer_s >= self.overload_trip_s
         if tripped.any():
@@ -364,7 +380,7 @@ class H54FirmwareBank:
         current = direction * torque_nm / self.torque_constant[joint].item() + current_noise
         self.last_current_a[joint] = current
         d = self._first if self.n == 1 else _JointView(self._decoded, joint)
-        timer = _overload_timer(_SCALAR, d, abs(current), self.overload_timer_s[joint].item(), dt_s)
+        timer = overload_timer(SCALAR, d, abs(current), self.overload_timer_s[joint].item(), dt_s)
         self.overload_timer_s[joint] = timer
         if timer >= self.overload_trip_s[joint]:
             self._trip(joint)
@@ -379,6 +395,9 @@ class H54FirmwareBank:
         if self._stream is None:
             return current, velocity
         draws = self._stream.take(self._draws_per_step)
+        if self._every_current and not self._velocity_noisy:
+            np.multiply(draws, self._current_rms, out=current)
+            return current, velocity
         joints, slots = self._current_joints, self._current_slots
         current[joints] = draws[slots] * self._current_rms[joints]
         joints, slots = self._velocity_joints, self._velocity_slots
@@ -425,26 +444,18 @@ class H54FirmwareBank:
             self._written[joint] = self._sample
             self.tables[joint].set_measurements(self.measurements(joint))
 
-    def write_all_measurements(self) -> None:
-        for joint in range(self.n):
-            self.write_measurements(joint)
-
     def _device_units(self) -> list[list[int]]:
-        """The state in the control table's units (e-Manual units; half-even rounding as
-        Python's round, saturated to the items' sizes), for all joints at once."""
+        """The last measured state in the control table's units, for all joints at once."""
         registers = self._registers_measured
-        homing = np.array([r.homing_offset_pulses if r else 0 for r in registers], float)
-        threshold = np.array([r.moving_threshold_rad_s if r else 0.0 for r in registers])
-        moving = np.abs(self._velocity) > threshold
-        position = np.rint(self._angle / RAD_PER_PULSE - homing)
-        velocity = np.rint(self._measured_velocity / RAD_S_PER_VELOCITY_UNIT)
-        current = np.rint(self.last_current_a / AMPERE_PER_CURRENT_UNIT)
-        return [
-            moving.astype(int).tolist(),
-            np.clip(position, _INT32_MIN, _INT32_MAX).astype(np.int64).tolist(),
-            np.clip(velocity, _INT32_MIN, _INT32_MAX).astype(np.int64).tolist(),
-            np.clip(current, _INT16_MIN, _INT16_MAX).astype(np.int64).tolist(),
-        ]
+        homing = [r.homing_offset_pulses if r else 0 for r in registers]
+        threshold = [r.moving_threshold_rad_s if r else 0.0 for r in registers]
+        state = (self._angle, self._velocity, self._measured_velocity, self.last_current_a)
+        if self.n == 1:  # Python numbers: cheaper than numpy for one joint
+            first = (a[0].item() for a in state)
+            units = to_device_units(SCALAR, *first, homing[0], threshold[0])
+            return [[int(value)] for value in units]
+        units = to_device_units(ARRAY, *state, np.array(homing, float), np.array(threshold))
+        return [value.astype(np.int64).tolist() for value in units]
 
 
 class _JointView:
@@ -456,67 +467,3 @@ class _JointView:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._decoded, name)[self._joint].item()
-
-
-class _ArrayOps:
-    """The law's selections on numpy arrays (elementwise, as the scalar ones)."""
-
-    @staticmethod
-    def clip(value: Any, low: Any, high: Any) -> Any:
-        return np.maximum(low, np.minimum(high, value))
-
-    where = staticmethod(np.where)
-    maximum = staticmethod(np.maximum)
-
-
-class _ScalarOps:
-    """The law's selections on Python numbers."""
-
-    @staticmethod
-    def clip(value: Any, low: Any, high: Any) -> Any:
-        return max(low, min(high, value))
-
-    @staticmethod
-    def where(condition: Any, if_true: Any, if_false: Any) -> Any:
-        return if_true if condition else if_false
-
-    maximum = staticmethod(max)
-
-
-_ARRAY, _SCALAR = _ArrayOps(), _ScalarOps()
-
-
-def _velocity_loop(
-    ops: Any, d: Any, angle: Any, velocity: Any, integral: Any, dt_s: float
-) -> tuple[Any, Any]:
-    """servo.py's cascade, device frame: (the velocity-loop input, the new integral [N m]).
-
-    Position modes: w* = Kpp (goal - angle) clipped to the speed cap; velocity mode: w* = Goal
-    Velocity; the torque kv (w* - w) + integral is clipped to the cap by MuJoCo, and the
-    integral (of kv/Ti (w* - w)) integrates only while that torque is not clipped or it is
-    unwinding, itself clipped to the cap. Torque mode: the current loop follows Goal Torque
-    (the integral is left alone). Torque off: the integral resets. Written once for numpy
-    arrays (`_ARRAY`) and Python numbers (`_SCALAR`)."""
-    speed_command = ops.clip(d.position_gain * (d.goal_angle - angle), d.neg_speed_cap, d.speed_cap)
-    if not d.all_position_mode:
-        speed_command = ops.where(d.velocity_mode, d.goal_velocity, speed_command)
-    speed_error = speed_command - velocity
-    unclipped = d.velocity_gain * speed_error + integral
-    integrate = (abs(unclipped) < d.torque_cap_nm) | (unclipped * speed_error < 0)
-    integrated = ops.clip(
-        integral + d.integral_rate * speed_error * dt_s, d.neg_torque_cap_nm, d.torque_cap_nm
-    )
-    new_integral = ops.where(integrate, integrated, integral)
-    command = speed_command + new_integral / d.velocity_gain
-    if not d.all_position_mode:
-        new_integral = ops.where(d.torque_mode, integral, new_integral)
-        command = ops.where(d.torque_mode, velocity + d.goal_torque_nm / d.velocity_gain, command)
-    return command, ops.where(d.torque_on, new_integral, 0.0)
-
-
-def _overload_timer(ops: Any, d: Any, current_abs_a: Any, timer_s: Any, dt_s: float) -> Any:
-    """servo.py's overload rule: the timer runs up while |I| >= the fraction of the current
-    cap, down (at the same rate) below it, never below 0; reset while torque is off."""
-    near_limit = current_abs_a >= d.overload_threshold_a
-    timer_s = ops.where(near_limit, timer_s + dt_s, timer_s - dt_s)
-    return ops.where(d.torque_on, ops.maximum(0.0, timer_s), 0.0)

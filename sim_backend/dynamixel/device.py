@@ -43,6 +43,7 @@ Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
@@ -141,7 +142,9 @@ class H54Device:
             if item.name in self._direct_items
         }
         self._measured_names = frozenset(item.name for item in layout.items if item.measured)
-        self._measurement_slots = tuple(self._direct_items[name] for name in _MEASUREMENT_ITEMS)
+        self._measurement_packers = _packers(
+            [self._direct_items[name] for name in _MEASUREMENT_ITEMS]
+        )
 
         for item in layout.items:
             self._store(item, item.default)
@@ -232,19 +235,13 @@ class H54Device:
     def set_measurements(self, measurements: Measurements) -> None:
         """Firmware-side: the Present* items after a physics step, in one go (the revision
         stays: they are not the firmware's inputs)."""
+        values = tuple(measurements)  # in the order of _MEASUREMENT_ITEMS
         table = self._table
-        values = (
-            measurements.moving,
-            measurements.position_pulses,
-            measurements.velocity_units,
-            measurements.current_units,
-            measurements.input_voltage_decivolts,
-            measurements.temperature_c,
-        )
-        for (address, end, size, signed), value in zip(
-            self._measurement_slots, values, strict=True
-        ):
-            table[address:end] = value.to_bytes(size, "little", signed=signed)
+        start = 0
+        for address, packer in self._measurement_packers:
+            end = start + len(packer.format) - 1  # one code per item after "<"
+            packer.pack_into(table, address, *values[start:end])
+            start = end
 
     def attach_measurement_source(self, write_measurements: Callable[[], None]) -> None:
         """`write_measurements()` runs before every read that may cover the Present* items (a
@@ -503,3 +500,19 @@ class H54Device:
             values.append((item, item.decode(raw)))
         error = self._value_error(values)
         return error, plan if error == ErrorCode.NONE else []
+
+
+def _packers(slots: list[tuple[int, int, int, bool]]) -> list[tuple[int, struct.Struct]]:
+    """(address, little-endian Struct) per run of adjacent items (address, end, size, signed):
+    the Present* block written with a pack_into per run, not a to_bytes per item."""
+    codes = {1: "b", 2: "h", 4: "i"}
+    runs: list[tuple[int, str]] = []
+    end = -1
+    for address, item_end, size, signed in slots:
+        code = codes[size] if signed else codes[size].upper()
+        if address == end:
+            runs[-1] = (runs[-1][0], runs[-1][1] + code)
+        else:
+            runs.append((address, "<" + code))
+        end = item_end
+    return [(address, struct.Struct(fmt)) for address, fmt in runs]
