@@ -260,6 +260,25 @@ class Emulator:
         self.slcan.close()
 
 
+def serve_spec_file(path: str) -> int:
+    """`hil emulate --spec-file PATH` (how `hil run` starts its embedded emulator): serve the
+    spec `spec_to_json` wrote, loading nothing but sim_backend (the CLI's imports cost seconds
+    of every run's start-up). Exit status as the `hil` command's: 0, or 1 with the reason."""
+    from sim_backend.spec_json import spec_from_json
+
+    try:
+        with open(path, encoding="utf-8") as spec_file:
+            spec = spec_from_json(spec_file.read())
+        serve(spec)
+    except KeyboardInterrupt:
+        print("hil: interrupted", file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: BLE001 - as `hil`: the reason, not a traceback
+        print(f"hil emulate: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def serve(spec: EmulatorSpec, out: TextIO = sys.stdout, extra: dict | None = None) -> None:
     """Build the emulator, print its endpoints as one JSON line, serve until SIGINT/SIGTERM,
     then print one more JSON line, {"fault_counts": Emulator.fault_counts()}."""

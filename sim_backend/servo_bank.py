@@ -39,10 +39,7 @@ import numpy as np
 
 from sim_backend.normal_stream import NormalStream
 from sim_backend.servo import (
-    EXTENDED_POSITION_MODE,
     OVERLOAD_BIT,
-    POSITION_MODE,
-    VELOCITY_MODE,
     ControlTable,
     H54ServoParams,
     Measurements,
@@ -50,7 +47,15 @@ from sim_backend.servo import (
     decode_registers,
     goal_angle_rad,
 )
-from sim_backend.servo_law import ARRAY, SCALAR, overload_timer, to_device_units, velocity_loop
+from sim_backend.servo_law import (
+    ARRAY,
+    SCALAR,
+    Decoded,
+    JointView,
+    overload_timer,
+    to_device_units,
+    velocity_loop,
+)
 
 
 @dataclass
@@ -62,67 +67,6 @@ class ServoCommands:
     torque_limit_nm: np.ndarray  # 0 where torque is off
     velocity_gain_nms_per_rad: np.ndarray  # kv; kept at its last torque-on value while off
     brake_damping_nms_per_rad: np.ndarray  # the dynamic brake: 0 where torque is on
-
-
-class _Decoded:
-    """The registers of all joints as arrays (SI), refreshed per joint after a write."""
-
-    def __init__(self, n: int) -> None:
-        self.position_gain = np.zeros(n)
-        self.velocity_gain = np.ones(n)
-        self.integral_rate = np.zeros(n)
-        self.current_cap_a = np.zeros(n)
-        self.torque_cap_nm = np.zeros(n)
-        self.speed_cap = np.zeros(n)
-        self.goal_angle = np.zeros(n)
-        self.goal_velocity = np.zeros(n)
-        self.goal_torque_nm = np.zeros(n)
-        self.position_mode = np.zeros(n, dtype=bool)
-        self.velocity_mode = np.zeros(n, dtype=bool)
-        self.torque_mode = np.zeros(n, dtype=bool)
-        self.homing_offset_pulses = np.zeros(n)
-        self.moving_threshold = np.zeros(n)
-        self.torque_on = np.zeros(n, dtype=bool)
-        self.neg_speed_cap = np.zeros(n)
-        self.neg_torque_cap_nm = np.zeros(n)
-        self.overload_threshold_a = np.zeros(n)
-        self.all_position_mode = True
-        self.all_on = False
-        self.registers: list[Registers | None] = [None] * n
-
-    def first(self) -> SimpleNamespace:
-        """Joint 0's figures as Python numbers (a bank of one runs the law on them)."""
-        return SimpleNamespace(
-            **{
-                name: value[0].item() if isinstance(value, np.ndarray) else value
-                for name, value in vars(self).items()
-                if name != "registers"
-            }
-        )
-
-    def store(self, joint: int, r: Registers, torque_on: bool, params: H54ServoParams) -> None:
-        kt = params.torque_constant_nm_per_a
-        self.registers[joint] = r
-        self.position_gain[joint] = r.position_gain_per_s
-        self.velocity_gain[joint] = r.velocity_gain_nms_per_rad
-        self.integral_rate[joint] = r.integral_rate_nm_per_rad
-        self.current_cap_a[joint] = r.current_cap_a
-        self.torque_cap_nm[joint] = r.current_cap_a * kt
-        self.speed_cap[joint] = r.speed_cap_rad_s
-        self.goal_velocity[joint] = r.goal_velocity_rad_s
-        self.goal_torque_nm[joint] = r.goal_torque_a * kt
-        mode = r.operating_mode
-        self.position_mode[joint] = mode in (POSITION_MODE, EXTENDED_POSITION_MODE)
-        self.velocity_mode[joint] = mode == VELOCITY_MODE
-        self.torque_mode[joint] = not (self.position_mode[joint] or self.velocity_mode[joint])
-        self.homing_offset_pulses[joint] = r.homing_offset_pulses
-        self.moving_threshold[joint] = r.moving_threshold_rad_s
-        self.torque_on[joint] = torque_on
-        self.neg_speed_cap[joint] = -self.speed_cap[joint]
-        self.neg_torque_cap_nm[joint] = -self.torque_cap_nm[joint]
-        self.overload_threshold_a[joint] = params.overload_current_fraction * r.current_cap_a
-        self.all_position_mode = bool(self.position_mode.all())
-        self.all_on = bool(self.torque_on.all())
 
 
 class H54FirmwareBank:
@@ -191,7 +135,7 @@ class H54FirmwareBank:
         self.integral_nm = np.zeros(n)
         self.overload_timer_s = np.zeros(n)
         self.last_current_a = np.zeros(n)
-        self._decoded = _Decoded(n)
+        self._decoded = Decoded(n)
         self._revisions = [-1] * n
         self._goal_writes: list[int | None] = [None] * n
         self._gains = np.zeros(n)  # kv per joint, kept at its last torque-on value while off
@@ -379,7 +323,7 @@ class H54FirmwareBank:
         self._measured_velocity[joint] = velocity + velocity_noise
         current = direction * torque_nm / self.torque_constant[joint].item() + current_noise
         self.last_current_a[joint] = current
-        d = self._first if self.n == 1 else _JointView(self._decoded, joint)
+        d = self._first if self.n == 1 else JointView(self._decoded, joint)
         timer = overload_timer(SCALAR, d, abs(current), self.overload_timer_s[joint].item(), dt_s)
         self.overload_timer_s[joint] = timer
         if timer >= self.overload_trip_s[joint]:
@@ -456,14 +400,3 @@ class H54FirmwareBank:
             return [[int(value)] for value in units]
         units = to_device_units(ARRAY, *state, np.array(homing, float), np.array(threshold))
         return [value.astype(np.int64).tolist() for value in units]
-
-
-class _JointView:
-    """One joint's decoded figures as Python numbers, read from the arrays on demand."""
-
-    def __init__(self, decoded: _Decoded, joint: int) -> None:
-        self._decoded = decoded
-        self._joint = joint
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._decoded, name)[self._joint].item()

@@ -4,19 +4,102 @@
 one, on Python numbers (`SCALAR`: numpy costs more than the law on one joint). The selections
 are the only operations that differ (`ops.where`, `ops.clip`, `ops.round`); clip is max(low,
 min(high, x)) and round is half to even in both, so both give the same floats, bit for bit
-(tests/sim_backend/test_firmware_bank_equivalence.py).
+(tests/sim_backend/test_firmware_bank_equivalence.py). `Decoded` holds the registers of n
+joints as the arrays the law reads.
 """
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
-from sim_backend.servo import AMPERE_PER_CURRENT_UNIT, RAD_PER_PULSE, RAD_S_PER_VELOCITY_UNIT
+from sim_backend.servo import (
+    AMPERE_PER_CURRENT_UNIT,
+    EXTENDED_POSITION_MODE,
+    POSITION_MODE,
+    RAD_PER_PULSE,
+    RAD_S_PER_VELOCITY_UNIT,
+    VELOCITY_MODE,
+    H54ServoParams,
+    Registers,
+)
 
 _INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
 _INT16_MIN, _INT16_MAX = -32768, 32767
+
+
+class Decoded:
+    """The registers of all joints as arrays (SI), refreshed per joint after a write."""
+
+    def __init__(self, n: int) -> None:
+        self.position_gain = np.zeros(n)
+        self.velocity_gain = np.ones(n)
+        self.integral_rate = np.zeros(n)
+        self.current_cap_a = np.zeros(n)
+        self.torque_cap_nm = np.zeros(n)
+        self.speed_cap = np.zeros(n)
+        self.goal_angle = np.zeros(n)
+        self.goal_velocity = np.zeros(n)
+        self.goal_torque_nm = np.zeros(n)
+        self.position_mode = np.zeros(n, dtype=bool)
+        self.velocity_mode = np.zeros(n, dtype=bool)
+        self.torque_mode = np.zeros(n, dtype=bool)
+        self.homing_offset_pulses = np.zeros(n)
+        self.moving_threshold = np.zeros(n)
+        self.torque_on = np.zeros(n, dtype=bool)
+        self.neg_speed_cap = np.zeros(n)
+        self.neg_torque_cap_nm = np.zeros(n)
+        self.overload_threshold_a = np.zeros(n)
+        self.all_position_mode = True
+        self.all_on = False
+        self.registers: list[Registers | None] = [None] * n
+
+    def first(self) -> SimpleNamespace:
+        """Joint 0's figures as Python numbers (a bank of one runs the law on them)."""
+        return SimpleNamespace(
+            **{
+                name: value[0].item() if isinstance(value, np.ndarray) else value
+                for name, value in vars(self).items()
+                if name != "registers"
+            }
+        )
+
+    def store(self, joint: int, r: Registers, torque_on: bool, params: H54ServoParams) -> None:
+        kt = params.torque_constant_nm_per_a
+        self.registers[joint] = r
+        self.position_gain[joint] = r.position_gain_per_s
+        self.velocity_gain[joint] = r.velocity_gain_nms_per_rad
+        self.integral_rate[joint] = r.integral_rate_nm_per_rad
+        self.current_cap_a[joint] = r.current_cap_a
+        self.torque_cap_nm[joint] = r.current_cap_a * kt
+        self.speed_cap[joint] = r.speed_cap_rad_s
+        self.goal_velocity[joint] = r.goal_velocity_rad_s
+        self.goal_torque_nm[joint] = r.goal_torque_a * kt
+        mode = r.operating_mode
+        self.position_mode[joint] = mode in (POSITION_MODE, EXTENDED_POSITION_MODE)
+        self.velocity_mode[joint] = mode == VELOCITY_MODE
+        self.torque_mode[joint] = not (self.position_mode[joint] or self.velocity_mode[joint])
+        self.homing_offset_pulses[joint] = r.homing_offset_pulses
+        self.moving_threshold[joint] = r.moving_threshold_rad_s
+        self.torque_on[joint] = torque_on
+        self.neg_speed_cap[joint] = -self.speed_cap[joint]
+        self.neg_torque_cap_nm[joint] = -self.torque_cap_nm[joint]
+        self.overload_threshold_a[joint] = params.overload_current_fraction * r.current_cap_a
+        self.all_position_mode = bool(self.position_mode.all())
+        self.all_on = bool(self.torque_on.all())
+
+
+class JointView:
+    """One joint's decoded figures as Python numbers, read from the arrays on demand."""
+
+    def __init__(self, decoded: Decoded, joint: int) -> None:
+        self._decoded = decoded
+        self._joint = joint
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._decoded, name)[self._joint].item()
 
 
 class _ArrayOps:

@@ -16,9 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.firmware import H54Firmware
 from sim_backend.plant import TestbedPlant, TestbedPlantParams
 from sim_backend.scenario import PushEvent
-from sim_backend.servo import ControlTable, H54Firmware, H54ServoParams
+from sim_backend.servo import ControlTable, H54ServoParams
 from sim_backend.servo_bank import H54FirmwareBank
 from sim_backend.step_clock import StepClock
 

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.firmware import H54Firmware
 from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams
 from sim_backend.humanoid.plant import HumanoidPlant
-from sim_backend.servo import ControlTable, H54Firmware
+from sim_backend.servo import ControlTable
 from sim_backend.servo_bank import H54FirmwareBank
 from sim_backend.spec import FloorBox
 from sim_backend.step_clock import StepClock
