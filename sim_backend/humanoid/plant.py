@@ -86,6 +86,7 @@ class HumanoidPlant:
             for name in FOOT_LINK_NAMES
         ]
         self._brake_damping = np.zeros(N_LEG_JOINTS)
+        self._braking = self._brake_applied = False
         self._pelvis_force = np.zeros(3)
         mujoco.mj_forward(model, self.data)
 
@@ -228,6 +229,7 @@ class HumanoidPlant:
         """The dynamic brakes' motor-side damping per joint (shorted windings while torque is
         off; 0 while the servo drives the motor)."""
         self._brake_damping[:] = brake_damping_nms_per_rad
+        self._braking = bool(self._brake_damping.any())
 
     def set_pelvis_force(self, force_n: np.ndarray | Sequence[float]) -> None:
         """A push [N] (world frame) applied at the pelvis's centre of mass until changed."""
@@ -237,7 +239,9 @@ class HumanoidPlant:
         """Advance one physics step."""
         data = self.data
         data.xfrc_applied[self._pelvis_body, :3] = self._pelvis_force
-        data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
+        if self._braking or self._brake_applied:  # (no brake: nothing to apply, nothing to undo)
+            data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
+            self._brake_applied = self._braking
         mujoco.mj_step(self.model, data)
 
     # --- set-up -------------------------------------------------------------------------------
