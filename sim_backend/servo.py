@@ -67,7 +67,9 @@ class ControlTable(Protocol):
     firmware decodes its registers again only then (it runs every physics step, 12 times over on
     the humanoid). `set_measurements` writes the Present* items in one go. A table may also
     offer `attach_measurement_source(fn)`: it then calls `fn()` before any read that may cover
-    the Present* items, and the firmware writes them only then (H54Device does)."""
+    the Present* items, and the firmware writes them only then (H54Device does); and a count
+    `goal_position_writes` of the writes that were Goal Position alone, so that the firmware
+    decodes only the goal after the host's every-tick write."""
 
     def item(self, name: str) -> int: ...
 
