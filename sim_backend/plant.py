@@ -279,14 +279,10 @@ class TestbedPlant:
         self.model.actuator_forcerange[self._actuator] = (-torque_limit_nm, torque_limit_nm)
         self.data.ctrl[self._actuator] = velocity_command_rad_s
 
-    def set_torque_off(self, brake_damping_nms_per_rad: float) -> None:
-        """Motor output off; a dynamic brake (shorted windings) adds motor-side damping."""
-        self.model.actuator_forcerange[self._actuator] = (0.0, 0.0)
-        self.data.ctrl[self._actuator] = 0.0
+    def set_brake(self, brake_damping_nms_per_rad: float) -> None:
+        """The dynamic brake's motor-side damping (shorted windings while torque is off; 0 while
+        the servo drives the motor)."""
         self._brake_damping_nms_per_rad = brake_damping_nms_per_rad
-
-    def release_brake(self) -> None:
-        self._brake_damping_nms_per_rad = 0.0
 
     def set_external_force(self, force_n: float) -> None:
         """A push on the load, perpendicular to the link, positive towards increasing angle."""

@@ -88,9 +88,9 @@ class Emulator:
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
         # The nodes were powered before any host connected: their power-on boot-ups go out now,
         # to the closed channel (later, one could pass for the answer to a host's first reset).
-        for frame in self.segment.poll(self._node_time()):
-            self.slcan.send_frame(frame)
+        self.slcan.send_frames(self.segment.poll(self._node_time()))
         self.sync_count = 0
+        self._node_faults_changed = False
         self.fault_schedule = FaultSchedule(spec.scenario.faults, len(spec.joints))
         self._running = False
         self._wall_origin = time.monotonic()
@@ -160,27 +160,34 @@ class Emulator:
                 continue
             # CAN first: a SYNC must step the plant before a later Dynamixel read is answered.
             if slcan.fileno() in readable:
-                for frame in slcan.read_frames():
-                    self._on_host_frame(frame)
+                self._on_host_frames(slcan.read_frames(flush=False))
             if line.fileno() in readable:
                 line.on_readable()
             else:
                 line.on_idle()
             if line.holds_reads:  # lock-step: a SYNC sent before the read steps the plant first
-                for frame in slcan.read_frames():
-                    self._on_host_frame(frame)
+                self._on_host_frames(slcan.read_frames(flush=False))
                 line.release_held_reads()
             line.flush_due()
             if self.realtime:
                 next_physics = self._follow_wall_clock()
-            for frame in self.segment.poll(self._node_time()):
-                slcan.send_frame(frame)
+            # the nodes' own frames (boot-up, heartbeat) and their reaction to a changed fault;
+            # otherwise a poll would find nothing to do
+            node_time = self._node_time()
+            due = self.segment.next_due_s()
+            if self._node_faults_changed or (due is not None and due <= node_time):
+                self._node_faults_changed = False
+                slcan.send_frames(self.segment.poll(node_time))
 
-    def _on_host_frame(self, frame: can.Message) -> None:
-        if frame.arbitration_id == SYNC_COB_ID and not frame.is_remote_frame:
-            self._on_sync()
-        for reply in self.segment.deliver(frame, self._node_time()):
-            self.slcan.send_frame(reply)
+    def _on_host_frames(self, frames: list[can.Message]) -> None:
+        """The host's frames on the bus; the adapter's answers and the nodes' replies go back
+        in one write (one wake-up of the host per SYNC, not one per frame)."""
+        replies: list[can.Message] = []
+        for frame in frames:
+            if frame.arbitration_id == SYNC_COB_ID and not frame.is_remote_frame:
+                self._on_sync()
+            replies += self.segment.deliver(frame, self._node_time())
+        self.slcan.send_frames(replies)
 
     def _on_sync(self) -> None:
         if self.sync_count == 0:
@@ -246,10 +253,30 @@ class Emulator:
             if node.fault.mode != mode or node.fault.noise_counts_rms != noise:
                 node.fault.mode = mode
                 node.fault.noise_counts_rms = noise
+                self._node_faults_changed = True
 
     def close(self) -> None:
         self.line.close()
         self.slcan.close()
+
+
+def serve_spec_file(path: str) -> int:
+    """`hil emulate --spec-file PATH` (how `hil run` starts its embedded emulator): serve the
+    spec `spec_to_json` wrote, loading nothing but sim_backend (the CLI's imports cost seconds
+    of every run's start-up). Exit status as the `hil` command's: 0, or 1 with the reason."""
+    from sim_backend.spec_json import spec_from_json
+
+    try:
+        with open(path, encoding="utf-8") as spec_file:
+            spec = spec_from_json(spec_file.read())
+        serve(spec)
+    except KeyboardInterrupt:
+        print("hil: interrupted", file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: BLE001 - as `hil`: the reason, not a traceback
+        print(f"hil emulate: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def serve(spec: EmulatorSpec, out: TextIO = sys.stdout, extra: dict | None = None) -> None:

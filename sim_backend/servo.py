@@ -30,13 +30,23 @@ brief suggests: an overload timer runs while |current| >= `overload_current_frac
 current cap and runs back down (at the same rate) below it; at `overload_trip_time_s` the firmware
 raises the Overload bit, which with the default Shutdown mask clears Torque Enable, engages the
 dynamic brake and sets the Alert bit until REBOOT (e-Manual, "Shutdown").
+
+Torque off (Torque Enable 0, or after the shutdown): no motor torque, the velocity-loop integral
+and the overload timer reset, the dynamic brake damps the motor side
+(`dynamic_brake_damping_nms_per_rad`) until torque comes back. The Present* items report the
+state after each physics step: Present Position (minus Homing Offset) and Present Velocity in
+the device frame (the actuator's mounting applied), Present Current = motor torque / torque
+constant plus its noise, Moving when |velocity| exceeds Moving Threshold.
+
+The law runs for all actuators of a plant at once in `sim_backend.servo_bank.H54FirmwareBank`;
+`sim_backend.firmware.H54Firmware` is one actuator's view of it.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 OVERLOAD_BIT = 0x20
 
@@ -55,7 +65,11 @@ class ControlTable(Protocol):
 
     `revision` changes whenever anything but the firmware's own measurements is written: the
     firmware decodes its registers again only then (it runs every physics step, 12 times over on
-    the humanoid). `set_measurements` writes the Present* items in one go."""
+    the humanoid). `set_measurements` writes the Present* items in one go. A table may also
+    offer `attach_measurement_source(fn)`: it then calls `fn()` before any read that may cover
+    the Present* items, and the firmware writes them only then (H54Device does); and a count
+    `goal_position_writes` of the writes that were Goal Position alone, so that the firmware
+    decodes only the goal after the host's every-tick write."""
 
     def item(self, name: str) -> int: ...
 
@@ -72,9 +86,9 @@ class ControlTable(Protocol):
     def set_measurements(self, measurements: Measurements) -> None: ...
 
 
-@dataclass(frozen=True)
-class Measurements:
-    """The Present* items the firmware writes after each physics step [device units]."""
+class Measurements(NamedTuple):
+    """The Present* items the firmware writes when they are read [device units] (a tuple: one
+    per device per tick, made cheaply)."""
 
     moving: int
     position_pulses: int
@@ -85,15 +99,15 @@ class Measurements:
 
 
 @dataclass(frozen=True)
-class _Registers:
-    """The firmware's inputs decoded from the control table (SI), valid for one revision."""
+class Registers:
+    """The firmware's inputs decoded from the control table (SI), valid for one revision
+    (Goal Position apart: `goal_angle_rad`, decoded alone when only it was written)."""
 
     position_gain_per_s: float
     velocity_gain_nms_per_rad: float
     integral_rate_nm_per_rad: float
     current_cap_a: float
     speed_cap_rad_s: float
-    goal_angle_rad: float
     goal_velocity_rad_s: float
     goal_torque_a: float
     operating_mode: int
@@ -156,158 +170,38 @@ class ServoOutput:
     torque_limit_nm: float
 
 
-class H54Firmware:
-    """Runs one actuator's servo and protection every physics step against its control table."""
-
-    def __init__(self, table: ControlTable, params: H54ServoParams) -> None:
-        self.table = table
-        self.params = params
-        self.integral_nm = 0.0
-        self.overload_timer_s = 0.0
-        self.last_current_a = 0.0
-        self._registers_cache: tuple[int, _Registers] | None = None
-
-    def on_reboot(self) -> None:
-        self.integral_nm = 0.0
-        self.overload_timer_s = 0.0
-
-    # --- gains and goals from registers ----------------------------------------------------
-    @property
-    def registers(self) -> _Registers:
-        """The control table's registers in SI, decoded again only after a write."""
-        revision = self.table.revision
-        cached = self._registers_cache
-        if cached is None or cached[0] != revision:
-            cached = (revision, self._decode_registers())
-            self._registers_cache = cached
-        return cached[1]
-
-    def _decode_registers(self) -> _Registers:
-        p, item = self.params, self.table.item
-        goal_torque, torque_limit = item("Goal Torque"), item("Torque Limit")
-        current_units = abs(goal_torque) if 0 < abs(goal_torque) <= torque_limit else torque_limit
-        goal_velocity, velocity_limit = item("Goal Velocity"), item("Velocity Limit")
-        speed_units = (
-            abs(goal_velocity) if 0 < abs(goal_velocity) <= velocity_limit else velocity_limit
-        )
-        homing_offset = item("Homing Offset")
-        return _Registers(
-            position_gain_per_s=p.position_gain_per_s
-            * item("Position P Gain")
-            / p.default_position_gain_register,
-            velocity_gain_nms_per_rad=p.velocity_gain_nms_per_rad
-            * item("Velocity P Gain")
-            / p.default_velocity_p_gain_register,
-            # kv / Ti in N m per rad (torque added per radian of integrated speed error)
-            integral_rate_nm_per_rad=p.velocity_gain_nms_per_rad
-            / p.velocity_integral_time_s
-            * item("Velocity I Gain")
-            / p.default_velocity_i_gain_register,
-            current_cap_a=current_units * AMPERE_PER_CURRENT_UNIT,
-            speed_cap_rad_s=speed_units * RAD_S_PER_VELOCITY_UNIT,
-            goal_angle_rad=(item("Goal Position") + homing_offset) * RAD_PER_PULSE,
-            goal_velocity_rad_s=goal_velocity * RAD_S_PER_VELOCITY_UNIT,
-            goal_torque_a=goal_torque * AMPERE_PER_CURRENT_UNIT,
-            operating_mode=item("Operating Mode"),
-            homing_offset_pulses=homing_offset,
-            moving_threshold_rad_s=item("Moving Threshold") * RAD_S_PER_VELOCITY_UNIT,
-        )
-
-    def _position_gain(self) -> float:
-        return self.registers.position_gain_per_s
-
-    def velocity_gain(self) -> float:
-        return self.registers.velocity_gain_nms_per_rad
-
-    def current_cap_a(self) -> float:
-        return self.registers.current_cap_a
-
-    def speed_cap_rad_s(self) -> float:
-        return self.registers.speed_cap_rad_s
-
-    def goal_angle_rad(self) -> float:
-        return self.registers.goal_angle_rad
-
-    # --- one physics step --------------------------------------------------------------------
-    def compute(
-        self, motor_angle_rad: float, motor_velocity_rad_s: float, dt_s: float
-    ) -> ServoOutput:
-        """The velocity-loop input and torque cap for this step (position modes only)."""
-        if not self.table.torque_enabled:
-            self.integral_nm = 0.0
-            return ServoOutput(False, 0.0, 0.0)
-        registers = self.registers
-        torque_cap = registers.current_cap_a * self.params.torque_constant_nm_per_a
-        kv = registers.velocity_gain_nms_per_rad
-        mode = registers.operating_mode
-        if mode in (POSITION_MODE, EXTENDED_POSITION_MODE):
-            speed_cap = registers.speed_cap_rad_s
-            position_error = registers.goal_angle_rad - motor_angle_rad
-            speed_command = max(
-                -speed_cap, min(speed_cap, registers.position_gain_per_s * position_error)
-            )
-        elif mode == VELOCITY_MODE:
-            speed_command = registers.goal_velocity_rad_s
-        else:  # torque mode: the current loop follows Goal Torque directly
-            torque = registers.goal_torque_a * self.params.torque_constant_nm_per_a
-            return ServoOutput(True, motor_velocity_rad_s + torque / kv, torque_cap)
-        speed_error = speed_command - motor_velocity_rad_s
-        proportional = kv * speed_error
-        # Anti-windup: integrate only while the output is not clipped (or is unwinding).
-        unclipped = proportional + self.integral_nm
-        if abs(unclipped) < torque_cap or (unclipped * speed_error) < 0:
-            self.integral_nm += registers.integral_rate_nm_per_rad * speed_error * dt_s
-            self.integral_nm = max(-torque_cap, min(torque_cap, self.integral_nm))
-        return ServoOutput(True, speed_command + self.integral_nm / kv, torque_cap)
-
-    def report(
-        self,
-        motor_torque_nm: float,
-        motor_angle_rad: float,
-        motor_velocity_rad_s: float,
-        dt_s: float,
-        current_noise_a: float = 0.0,
-        velocity_noise_rad_s: float = 0.0,
-    ) -> None:
-        """Write the Present* items after a physics step and run the overload protection.
-
-        current_noise_a, velocity_noise_rad_s: this step's measurement noise (the current the
-        firmware measures is also what its overload protection sees)."""
-        p = self.params
-        registers = self.registers
-        current_a = motor_torque_nm / p.torque_constant_nm_per_a + current_noise_a
-        self.last_current_a = current_a
-        measured_velocity = motor_velocity_rad_s + velocity_noise_rad_s
-        self.table.set_measurements(
-            Measurements(
-                moving=int(abs(motor_velocity_rad_s) > registers.moving_threshold_rad_s),
-                position_pulses=_round_to_int32(
-                    motor_angle_rad / RAD_PER_PULSE - registers.homing_offset_pulses
-                ),
-                velocity_units=_round_to_int32(measured_velocity / RAD_S_PER_VELOCITY_UNIT),
-                current_units=_clamp_int16(round(current_a / AMPERE_PER_CURRENT_UNIT)),
-                input_voltage_decivolts=round(p.input_voltage_v * 10),
-                temperature_c=round(p.temperature_c),
-            )
-        )
-        self._run_overload_protection(abs(current_a), dt_s)
-
-    def _run_overload_protection(self, current_a: float, dt_s: float) -> None:
-        if not self.table.torque_enabled:
-            self.overload_timer_s = 0.0
-            return
-        cap_a = self.registers.current_cap_a
-        near_limit = current_a >= self.params.overload_current_fraction * cap_a
-        self.overload_timer_s += dt_s if near_limit else -dt_s
-        self.overload_timer_s = max(0.0, self.overload_timer_s)
-        if self.overload_timer_s >= self.params.overload_trip_time_s:
-            self.table.raise_hardware_error(OVERLOAD_BIT)
-            self.overload_timer_s = 0.0
+def goal_angle_rad(goal_position_pulses: int, homing_offset_pulses: int) -> float:
+    """Goal Position (596) in the device frame [rad]: the Homing Offset (20) added, as Present
+    Position subtracts it."""
+    return (goal_position_pulses + homing_offset_pulses) * RAD_PER_PULSE
 
 
-def _round_to_int32(value: float) -> int:
-    return max(-(2**31), min(2**31 - 1, round(value)))
-
-
-def _clamp_int16(value: int) -> int:
-    return max(-32768, min(32767, value))
+def decode_registers(table: ControlTable, params: H54ServoParams) -> Registers:
+    """The firmware's inputs in SI from its control table (each gain scaled linearly with its
+    register, the factory default register mapping to the SI default of `params`)."""
+    p, item = params, table.item
+    goal_torque, torque_limit = item("Goal Torque"), item("Torque Limit")
+    current_units = abs(goal_torque) if 0 < abs(goal_torque) <= torque_limit else torque_limit
+    goal_velocity, velocity_limit = item("Goal Velocity"), item("Velocity Limit")
+    speed_units = abs(goal_velocity) if 0 < abs(goal_velocity) <= velocity_limit else velocity_limit
+    homing_offset = item("Homing Offset")
+    return Registers(
+        position_gain_per_s=p.position_gain_per_s
+        * item("Position P Gain")
+        / p.default_position_gain_register,
+        velocity_gain_nms_per_rad=p.velocity_gain_nms_per_rad
+        * item("Velocity P Gain")
+        / p.default_velocity_p_gain_register,
+        # kv / Ti in N m per rad (torque added per radian of integrated speed error)
+        integral_rate_nm_per_rad=p.velocity_gain_nms_per_rad
+        / p.velocity_integral_time_s
+        * item("Velocity I Gain")
+        / p.default_velocity_i_gain_register,
+        current_cap_a=current_units * AMPERE_PER_CURRENT_UNIT,
+        speed_cap_rad_s=speed_units * RAD_S_PER_VELOCITY_UNIT,
+        goal_velocity_rad_s=goal_velocity * RAD_S_PER_VELOCITY_UNIT,
+        goal_torque_a=goal_torque * AMPERE_PER_CURRENT_UNIT,
+        operating_mode=item("Operating Mode"),
+        homing_offset_pulses=homing_offset,
+        moving_threshold_rad_s=item("Moving Threshold") * RAD_S_PER_VELOCITY_UNIT,
+    )

@@ -16,9 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.firmware import H54Firmware
 from sim_backend.plant import TestbedPlant, TestbedPlantParams
 from sim_backend.scenario import PushEvent
-from sim_backend.servo import ControlTable, H54Firmware, H54ServoParams
+from sim_backend.servo import ControlTable, H54ServoParams
+from sim_backend.servo_bank import H54FirmwareBank
 from sim_backend.step_clock import StepClock
 
 
@@ -57,66 +59,55 @@ class EmulatedJoint:
         rng: np.random.Generator | None = None,
     ) -> None:
         self.table = table
-        self.firmware = H54Firmware(table, servo_params)
+        self.bank = H54FirmwareBank(
+            [table],
+            [servo_params],
+            directions=[motor_mounting.direction],
+            offsets_rad=[motor_mounting.offset_rad],
+            rng=rng or np.random.default_rng(0),
+        )
+        self.firmware = H54Firmware(bank=self.bank)
         self.plant = TestbedPlant(plant_params, servo_params.velocity_gain_nms_per_rad)
         self.motor_mounting = motor_mounting
         self.pushes: list[PushEvent] = []
-        self._rng = rng or np.random.default_rng(0)
         self._dt = plant_params.physics_timestep_s
-        self._torque_was_on = False
+        self._brake_damping = servo_params.dynamic_brake_damping_nms_per_rad
         # The device starts holding where it stands (a powered-up servo's goal is its position).
         self._report()
         table.set_item("Goal Position", table.item("Present Position"))
 
     def on_reboot(self) -> None:
-        self.firmware.on_reboot()
+        self.bank.on_reboot(0)
         self._report()
         self.table.set_item("Goal Position", self.table.item("Present Position"))
 
     def step(self, scenario_time_s: float | None) -> None:
-        """One physics step: firmware -> motor -> MuJoCo -> Present* items and protection.
+        """One physics step: firmware -> motor -> MuJoCo -> overload protection (the Present*
+        items carry the servo's noise, `H54ServoParams`, drawn from this joint's seeded
+        generator: current first, then velocity, every physics step).
 
         scenario_time_s: time since the run's first SYNC (None before it: no pushes yet).
         """
         plant = self.plant
-        mount = self.motor_mounting
-        device_angle = mount.to_device(plant.motor_angle_rad)
-        device_velocity = mount.direction * plant.motor_velocity_rad_s
-        out = self.firmware.compute(device_angle, device_velocity, self._dt)
-        if out.torque_on:
-            if not self._torque_was_on:
-                plant.release_brake()
-            plant.set_servo(mount.direction * out.velocity_command_rad_s, out.torque_limit_nm)
-        else:
-            plant.set_torque_off(self.firmware.params.dynamic_brake_damping_nms_per_rad)
-        self._torque_was_on = out.torque_on
+        torque_on, command, cap = self.bank.command_one(
+            plant.motor_angle_rad, plant.motor_velocity_rad_s, self._dt
+        )
+        plant.set_servo(command, cap)
+        plant.set_brake(0.0 if torque_on else self._brake_damping)
         push = 0.0
         if scenario_time_s is not None:
             push = sum(p.force_at(scenario_time_s) for p in self.pushes)
         plant.set_external_force(push)
         plant.step()
-        self._report()
+        self.bank.measure_one(
+            plant.motor_torque_nm, plant.motor_angle_rad, plant.motor_velocity_rad_s, self._dt
+        )
 
     def _report(self) -> None:
-        """Present* items with the servo's measurement noise (`H54ServoParams`), drawn from this
-        joint's seeded generator: current first, then velocity, every physics step."""
-        params = self.firmware.params
-        current_noise = (
-            float(self._rng.normal(0.0, params.current_noise_a)) if params.current_noise_a else 0.0
-        )
-        velocity_noise = (
-            float(self._rng.normal(0.0, params.velocity_noise_rad_s))
-            if params.velocity_noise_rad_s
-            else 0.0
-        )
-        mount = self.motor_mounting
-        self.firmware.report(
-            mount.direction * self.plant.motor_torque_nm,
-            mount.to_device(self.plant.motor_angle_rad),
-            mount.direction * self.plant.motor_velocity_rad_s,
-            self._dt,
-            current_noise_a=current_noise,
-            velocity_noise_rad_s=velocity_noise,
+        """The measurements now (power-on, reboot), the noise drawn as a step's."""
+        plant = self.plant
+        self.bank.report_joint(
+            0, plant.motor_torque_nm, plant.motor_angle_rad, plant.motor_velocity_rad_s, self._dt
         )
 
 

@@ -104,6 +104,7 @@ class ForceTorqueSensorNode(CanopenSlave):
             digits = int(self._store.stored_value(_DECIMAL_DIGITS, channel))
             self._counts_per_unit[channel - 1] = 10.0 ** (digits - prefix_exponent)
             self._store.on_read(_PROCESS_VALUE, channel, self._channel_hook(channel - 1))
+        self._scales = self._counts_per_unit.tolist()
         self._store.validate_writes(_TPDO2_COMMUNICATION, 2, _sync_types_only)
         self._tpdo2_objects, self._tpdo2_struct = self._tpdo2_mapping()
 
@@ -119,12 +120,15 @@ class ForceTorqueSensorNode(CanopenSlave):
         if mode == "stale" and self._latched_valid:
             return
         force, torque = self._wrench_source()
-        values = np.concatenate((np.asarray(force, dtype=float), np.asarray(torque, dtype=float)))
-        if values.shape != (_N_CHANNELS,) or not np.all(np.isfinite(values)):
+        values = [float(v) for v in force] + [float(v) for v in torque]
+        if len(values) != _N_CHANNELS or not all(map(math.isfinite, values)):
             raise ValueError(f"node {self.node_id}: the wrench source gave {values!r}")
-        counts = values * self._counts_per_unit
+        # Python numbers, channel by channel (the same products and sums as on arrays)
+        counts = [value * scale for value, scale in zip(values, self._scales, strict=True)]
         if mode == "noisy" and self.fault.noise_counts_rms > 0.0:
-            counts = counts + self._rng.normal(0.0, self.fault.noise_counts_rms, _N_CHANNELS)
+            rms = self.fault.noise_counts_rms
+            noise = self._normals.take(_N_CHANNELS).tolist()
+            counts = [count + z * rms for count, z in zip(counts, noise, strict=True)]
         self._latched = [
             max(_INT16_MIN, min(_INT16_MAX, math.floor(value + 0.5))) for value in counts
         ]

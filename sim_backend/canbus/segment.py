@@ -47,6 +47,7 @@ class CanSegment:
         if bitrate <= 0:
             raise ValueError(f"bitrate must be a positive number of bit/s, got {bitrate}")
         self.bitrate = bitrate
+        self._listening: dict[int, tuple[CanNode, ...]] = {}
 
     def deliver(self, msg: can.Message, now_s: float) -> list[can.Message]:
         """Frames the nodes put on the bus in reaction to `msg` from outside the segment."""
@@ -73,11 +74,25 @@ class CanSegment:
     ) -> list[can.Message]:
         on_bus = [frame for frame, _ in initial] if report_initial else []
         pending = deque(initial)
+        first_frames = len(initial)
+        unpowered: list[CanNode] | None = None
         while pending:
             frame, sender = pending.popleft()
+            if first_frames:  # reaches every node: each catches up to now_s
+                first_frames -= 1
+                hearing = self.nodes
+            else:
+                # the replies (e.g. a SYNC's TPDOs) go only to the nodes they can concern:
+                # every node has run at now_s already, so to any other node such a frame
+                # changes nothing but its count of frames unheard while it has no power
+                if unpowered is None:
+                    unpowered = [n for n in self.nodes if getattr(n, "powered", True) is False]
+                hearing = self._listeners_of(frame.arbitration_id)
+                if unpowered:
+                    hearing = tuple(n for n in self.nodes if n in hearing or n in unpowered)
             replies = [
                 (reply, node)
-                for node in self.nodes
+                for node in hearing
                 if node is not sender
                 for reply in node.handle(frame, now_s)
             ]
@@ -92,6 +107,20 @@ class CanSegment:
                     f"frame (0x{frame.arbitration_id:03X}); nodes keep answering each other"
                 )
         return on_bus
+
+    def _listeners_of(self, cob_id: int) -> tuple[CanNode, ...]:
+        """The nodes that react to frames with this COB-ID (a node that does not say which it
+        reacts to, `reacting_cob_ids`, hears everything)."""
+        cached = self._listening.get(cob_id)
+        if cached is None:
+            cached = tuple(
+                node
+                for node in self.nodes
+                if getattr(node, "reacting_cob_ids", None) is None
+                or cob_id in node.reacting_cob_ids  # type: ignore[attr-defined]
+            )
+            self._listening[cob_id] = cached
+        return cached
 
 
 def _arbitration_key(item: tuple[can.Message, object]) -> int:

@@ -75,6 +75,7 @@ from sim_backend.canbus.cia301 import (
 )
 from sim_backend.canbus.object_store import ObjectStore
 from sim_backend.canbus.sdo_server import SdoServer
+from sim_backend.normal_stream import NormalStream
 
 FAULT_MODES = ("ok", "dead", "stale", "noisy")
 
@@ -194,11 +195,13 @@ class CanopenSlave(abc.ABC):
         self._store.on_read(*process_value_object, self._sample_raw)
         self._store.after_write = self._after_write
         self._sdo = SdoServer(self._store)
-        self._rng = np.random.default_rng(seed)
+        self._normals = NormalStream(np.random.default_rng(seed))
         self._tpdo_objects, self._tpdo_struct = self._static_tpdo_mapping()
 
         self._heartbeat_cob_id = HEARTBEAT_COB_ID_BASE + node_id
         self._sdo_request_cob_id = SDO_REQUEST_COB_ID_BASE + node_id
+        # The only frames `handle` acts on (any other one is ignored, or counted while dead)
+        self.reacting_cob_ids = frozenset((NMT_COB_ID, SYNC_COB_ID, self._sdo_request_cob_id))
         self._sdo_response_cob_id = SDO_RESPONSE_COB_ID_BASE + node_id
 
         self._now_us = 0
@@ -225,6 +228,11 @@ class CanopenSlave(abc.ABC):
     def nmt_state(self) -> NmtState:
         """The node's NMT state (INITIALISING while it has no power)."""
         return self._state
+
+    @property
+    def powered(self) -> bool:
+        """False while the node has no power (fault "dead"), as of its last call."""
+        return self._powered
 
     @property
     def booting(self) -> bool:
@@ -325,9 +333,9 @@ class CanopenSlave(abc.ABC):
                 f"node {self.node_id}: the plant's source gave a non-finite value ({exact!r})"
             )
         if self._process_noise_rms > 0.0:
-            exact += float(self._rng.normal(0.0, self._process_noise_rms))
+            exact += self._normals.next() * self._process_noise_rms
         if self.fault.mode == "noisy" and self.fault.noise_counts_rms > 0.0:
-            exact += float(self._rng.normal(0.0, self.fault.noise_counts_rms))
+            exact += self._normals.next() * self.fault.noise_counts_rms
             self.fault_counts.noisy_samples += 1
         raw = wrap_int32(math.floor(exact + 0.5))  # round half up
         self._last_sample_raw = raw

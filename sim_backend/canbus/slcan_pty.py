@@ -41,6 +41,7 @@ pty whose slave has no open fd reports EIO on the master.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 
 import can
 
@@ -136,8 +137,10 @@ class SlcanPty:
         return self._pty.master_fd
 
     # --- the event-loop API ----------------------------------------------------------------
-    def read_frames(self) -> list[can.Message]:
-        """Frames the host sent to the bus since the last call (commands are answered here)."""
+    def read_frames(self, *, flush: bool = True) -> list[can.Message]:
+        """Frames the host sent to the bus since the last call (commands are answered here;
+        with flush=False the answers wait for the next `send_frames`/`flush_output`, so that
+        they and the nodes' replies reach the host in one write)."""
         self._fill_input()
         frames: list[can.Message] = []
         while True:
@@ -153,18 +156,26 @@ class SlcanPty:
             self._queue_output(reply)
             if frame is not None:
                 frames.append(frame)
-        self.flush_output()
+        if flush:
+            self.flush_output()
         return frames
 
     def send_frame(self, msg: can.Message) -> None:
         """Pass one frame from the bus to the host (dropped while the adapter is off the bus)."""
-        if not self.on_bus or msg.is_fd or msg.is_error_frame:
-            return
-        line = encode_frame(msg)
-        if len(self._output) + len(line) > _MAX_PENDING_OUTPUT_BYTES:
-            self._status_flags |= _FLAG_DATA_OVERRUN  # the host is not reading: drop
-            return
-        self._output += line
+        self.send_frames((msg,))
+
+    def send_frames(self, msgs: Iterable[can.Message]) -> None:
+        """Pass frames from the bus to the host in one write (with any answers not yet sent):
+        a pty write wakes the host, so a SYNC's replies go out together."""
+        if self.on_bus:
+            for msg in msgs:
+                if msg.is_fd or msg.is_error_frame:
+                    continue
+                line = encode_frame(msg)
+                if len(self._output) + len(line) > _MAX_PENDING_OUTPUT_BYTES:
+                    self._status_flags |= _FLAG_DATA_OVERRUN  # the host is not reading: drop
+                    continue
+                self._output += line
         self.flush_output()
 
     def flush_output(self) -> None:

@@ -43,6 +43,7 @@ Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
@@ -117,9 +118,15 @@ class H54Device:
         self._registered: tuple[int, bytes] | None = None
         self._reboot_listeners: list[Callable[[], None]] = []
         self._indirect_map: list[int] | None = None  # Indirect Address 1..256, cached
+        # The firmware writes the Present* items when a read may cover them (see
+        # `attach_measurement_source`), not after every physics step.
+        self._measurement_source: Callable[[], None] | None = None
         # Changes with every write but the firmware's measurements: the firmware re-decodes
-        # its registers only then.
+        # its registers only then; only Goal Position when all writes since were WRITEs of
+        # exactly Goal Position (counted here: the host's every tick).
         self.revision = 0
+        self.goal_position_writes = 0
+        self._goal_position_address = layout["Goal Position"].address
         # Items that are neither Indirect Data nor Indirect Address: read and written as plain
         # bytes (name -> address, end, size, signed), the fast path of item/set_item.
         self._direct_items: dict[str, tuple[int, int, int, bool]] = {
@@ -128,8 +135,16 @@ class H54Device:
             if not (INDIRECT_DATA_BASE <= item.address < _INDIRECT_DATA_END)
             and not (item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END)
         }
+        # Plain items by (address, size): a write of exactly one of them takes a short path.
+        self._whole_items: dict[tuple[int, int], ControlItem] = {
+            (item.address, item.size): item
+            for item in layout.items
+            if item.name in self._direct_items
+        }
         self._measured_names = frozenset(item.name for item in layout.items if item.measured)
-        self._measurement_slots = tuple(self._direct_items[name] for name in _MEASUREMENT_ITEMS)
+        self._measurement_packers = _packers(
+            [self._direct_items[name] for name in _MEASUREMENT_ITEMS]
+        )
 
         for item in layout.items:
             self._store(item, item.default)
@@ -186,6 +201,10 @@ class H54Device:
 
     def item(self, name: str) -> int:
         """Decoded value of an item (signed where the item is); Indirect Data follows its map."""
+        if self._measurement_source is not None and (
+            name in self._measured_names or name not in self._direct_items
+        ):
+            self._measurement_source()
         direct = self._direct_items.get(name)
         if direct is not None:  # the firmware reads ~15 items per physics step: keep it cheap
             address, end, _, signed = direct
@@ -216,19 +235,19 @@ class H54Device:
     def set_measurements(self, measurements: Measurements) -> None:
         """Firmware-side: the Present* items after a physics step, in one go (the revision
         stays: they are not the firmware's inputs)."""
+        values = tuple(measurements)  # in the order of _MEASUREMENT_ITEMS
         table = self._table
-        values = (
-            measurements.moving,
-            measurements.position_pulses,
-            measurements.velocity_units,
-            measurements.current_units,
-            measurements.input_voltage_decivolts,
-            measurements.temperature_c,
-        )
-        for (address, end, size, signed), value in zip(
-            self._measurement_slots, values, strict=True
-        ):
-            table[address:end] = value.to_bytes(size, "little", signed=signed)
+        start = 0
+        for address, packer in self._measurement_packers:
+            end = start + len(packer.format) - 1  # one code per item after "<"
+            packer.pack_into(table, address, *values[start:end])
+            start = end
+
+    def attach_measurement_source(self, write_measurements: Callable[[], None]) -> None:
+        """`write_measurements()` runs before every read that may cover the Present* items (a
+        READ, SYNC_READ or BULK_READ, Indirect Data, `item` of a measured item): the firmware
+        writes them then with `set_measurements`, if they changed since."""
+        self._measurement_source = write_measurements
 
     def raise_hardware_error(self, bits: int) -> None:
         """OR `bits` into Hardware Error Status (892). Bits also set in Shutdown (48) turn
@@ -286,6 +305,8 @@ class H54Device:
         """READ: (error number, data). Undefined bytes inside the table read as 0."""
         if address < 0 or length < 0 or address + length > self._layout.size_bytes:
             return ErrorCode.ACCESS, b""
+        if self._measurement_source is not None:
+            self._measurement_source()
         end = address + length
         table = self._table
         if end <= INDIRECT_DATA_BASE or address >= _INDIRECT_DATA_END:
@@ -298,6 +319,9 @@ class H54Device:
 
     def write(self, address: int, data: bytes) -> int:
         """WRITE: all of it or none of it; returns the error number."""
+        whole_item = self._whole_items.get((address, len(data)))
+        if whole_item is not None:
+            return self._write_whole_item(whole_item, bytes(data))
         error, plan = self._plan_write(address, data)
         if error == ErrorCode.NONE:
             self.revision += 1
@@ -408,6 +432,48 @@ class H54Device:
             return -self.item(bound[1:])
         return self.item(bound)
 
+    def _refused(self, item: ControlItem | None, torque_on: bool) -> bool:
+        """Access Error for a write to this item: none there, read-only, EEPROM while torque is
+        on, or its gate closed."""
+        if item is None or item.access is Access.READ:
+            return True
+        if item.area is Area.EEPROM and torque_on:
+            return True
+        if item.writable_when is not None:
+            gate_name, gate_value = item.writable_when
+            if self.item(gate_name) != gate_value:
+                return True
+        return False
+
+    def _value_error(self, values: list[tuple[ControlItem, int]]) -> int:
+        """Range, then limit, then shutdown errors of the values a write would store."""
+        for item, value in values:
+            if not item.in_range(value):
+                return ErrorCode.DATA_RANGE
+        for item, value in values:
+            if item.name == "Goal Position" and self.item("Operating Mode") == 4:
+                continue  # Extended Position Control Mode ignores the position limits
+            low = self._limit_value(item.limit_low)
+            high = self._limit_value(item.limit_high)
+            if (low is not None and value < low) or (high is not None and value > high):
+                return ErrorCode.DATA_LIMIT
+        for item, value in values:
+            if item.name == _TORQUE_ENABLE and value == 1 and self._in_shutdown:
+                return ErrorCode.RESULT_FAIL
+        return ErrorCode.NONE
+
+    def _write_whole_item(self, item: ControlItem, data: bytes) -> int:
+        """WRITE of exactly one plain item (the host's Goal Position every tick): the checks
+        of `_plan_write` for that item, without walking it byte by byte."""
+        if self._refused(item, self.torque_enabled):
+            return ErrorCode.ACCESS
+        error = self._value_error([(item, item.decode(data))])
+        if error == ErrorCode.NONE:
+            self.revision += 1
+            self.goal_position_writes += item.address == self._goal_position_address
+            self._table[item.address : item.end] = data
+        return error
+
     def _plan_write(self, address: int, data: bytes) -> tuple[int, list[tuple[int, int]]]:
         """Check a write of `data` at `address`; return (error, [(physical address, byte)])."""
         layout = self._layout
@@ -421,14 +487,9 @@ class H54Device:
         for offset, byte in enumerate(data):
             physical = self._physical(address + offset)
             item = layout.item_at(physical)
-            if item is None or item.access is Access.READ:
+            if self._refused(item, torque_on):
                 return ErrorCode.ACCESS, []
-            if item.area is Area.EEPROM and torque_on:
-                return ErrorCode.ACCESS, []
-            if item.writable_when is not None:
-                gate_name, gate_value = item.writable_when
-                if self.item(gate_name) != gate_value:
-                    return ErrorCode.ACCESS, []
+            assert item is not None
             touched.setdefault(item.name, (item, {}))[1][physical - item.address] = byte
             plan.append((physical, byte))
         values: list[tuple[ControlItem, int]] = []
@@ -437,17 +498,21 @@ class H54Device:
                 return ErrorCode.DATA_LENGTH, []
             raw = bytes(item_bytes[k] for k in range(item.size))
             values.append((item, item.decode(raw)))
-        for item, value in values:
-            if not item.in_range(value):
-                return ErrorCode.DATA_RANGE, []
-        for item, value in values:
-            if item.name == "Goal Position" and self.item("Operating Mode") == 4:
-                continue  # Extended Position Control Mode ignores the position limits
-            low = self._limit_value(item.limit_low)
-            high = self._limit_value(item.limit_high)
-            if (low is not None and value < low) or (high is not None and value > high):
-                return ErrorCode.DATA_LIMIT, []
-        for item, value in values:
-            if item.name == _TORQUE_ENABLE and value == 1 and self._in_shutdown:
-                return ErrorCode.RESULT_FAIL, []
-        return ErrorCode.NONE, plan
+        error = self._value_error(values)
+        return error, plan if error == ErrorCode.NONE else []
+
+
+def _packers(slots: list[tuple[int, int, int, bool]]) -> list[tuple[int, struct.Struct]]:
+    """(address, little-endian Struct) per run of adjacent items (address, end, size, signed):
+    the Present* block written with a pack_into per run, not a to_bytes per item."""
+    codes = {1: "b", 2: "h", 4: "i"}
+    runs: list[tuple[int, str]] = []
+    end = -1
+    for address, item_end, size, signed in slots:
+        code = codes[size] if signed else codes[size].upper()
+        if address == end:
+            runs[-1] = (runs[-1][0], runs[-1][1] + code)
+        else:
+            runs.append((address, "<" + code))
+        end = item_end
+    return [(address, struct.Struct(fmt)) for address, fmt in runs]

@@ -86,6 +86,7 @@ class HumanoidPlant:
             for name in FOOT_LINK_NAMES
         ]
         self._brake_damping = np.zeros(N_LEG_JOINTS)
+        self._braking = self._brake_applied = False
         self._pelvis_force = np.zeros(3)
         mujoco.mj_forward(model, self.data)
 
@@ -140,15 +141,9 @@ class HumanoidPlant:
             float(self.data.qvel[self._motor_dof[joint]]),
         )
 
-    def motor_states(self) -> tuple[list[float], list[float]]:
-        """(motor angles, motor velocities) of the 12 joints as lists (the firmware's input)."""
-        return (
-            self.data.qpos[self._motor_qpos].tolist(),
-            self.data.qvel[self._motor_dof].tolist(),
-        )
-
-    def motor_torques(self) -> list[float]:
-        return self.data.actuator_force[self._actuator].tolist()
+    def motor_state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(motor angles, motor velocities) of the 12 joints (new arrays: the firmware's input)."""
+        return self.data.qpos[self._motor_qpos], self.data.qvel[self._motor_dof]
 
     def joint_link_angle_rad(self, joint: int) -> float:
         """One joint's link angle (the CAN encoder's source)."""
@@ -218,18 +213,11 @@ class HumanoidPlant:
         return found
 
     # --- inputs -------------------------------------------------------------------------------
-    def set_servo(self, joint: int, velocity_command_rad_s: float, torque_limit_nm: float) -> None:
-        """The servo's velocity-loop input and torque cap for this step (one joint)."""
-        actuator = self._actuator[joint]
-        self.model.actuator_forcerange[actuator, 0] = -torque_limit_nm
-        self.model.actuator_forcerange[actuator, 1] = torque_limit_nm
-        self.data.ctrl[actuator] = velocity_command_rad_s
-
     def set_servos(
         self, velocity_commands_rad_s: np.ndarray, torque_limits_nm: np.ndarray, kv: np.ndarray
     ) -> None:
-        """set_servo for all 12 joints at once, with the velocity P gains kv (implicit actuator
-        force kv (ctrl - qvel)); arrays in the lab order."""
+        """The servos' velocity-loop inputs and torque caps for this step, with the velocity P
+        gains kv (implicit actuator force kv (ctrl - qvel)); arrays in the lab order."""
         actuators = self._actuator
         self.model.actuator_forcerange[actuators, 0] = -torque_limits_nm
         self.model.actuator_forcerange[actuators, 1] = torque_limits_nm
@@ -237,13 +225,11 @@ class HumanoidPlant:
         self.model.actuator_biasprm[actuators, 2] = -kv
         self.data.ctrl[actuators] = velocity_commands_rad_s
 
-    def set_torque_off(self, joint: int, brake_damping_nms_per_rad: float) -> None:
-        """Motor output off; the dynamic brake (shorted windings) damps the motor side."""
-        self.set_servo(joint, 0.0, 0.0)
-        self._brake_damping[joint] = brake_damping_nms_per_rad
-
-    def release_brake(self, joint: int) -> None:
-        self._brake_damping[joint] = 0.0
+    def set_brakes(self, brake_damping_nms_per_rad: np.ndarray) -> None:
+        """The dynamic brakes' motor-side damping per joint (shorted windings while torque is
+        off; 0 while the servo drives the motor)."""
+        self._brake_damping[:] = brake_damping_nms_per_rad
+        self._braking = bool(self._brake_damping.any())
 
     def set_pelvis_force(self, force_n: np.ndarray | Sequence[float]) -> None:
         """A push [N] (world frame) applied at the pelvis's centre of mass until changed."""
@@ -253,7 +239,9 @@ class HumanoidPlant:
         """Advance one physics step."""
         data = self.data
         data.xfrc_applied[self._pelvis_body, :3] = self._pelvis_force
-        data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
+        if self._braking or self._brake_applied:  # (no brake: nothing to apply, nothing to undo)
+            data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
+            self._brake_applied = self._braking
         mujoco.mj_step(self.model, data)
 
     # --- set-up -------------------------------------------------------------------------------

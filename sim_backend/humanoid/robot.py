@@ -1,15 +1,18 @@
 """The emulated DYROS-JET legs: 12 H54 firmware models in front of the MuJoCo plant.
 
 Like the testbed's `EmulatedJoint`/`VirtualTestbed` (sim_backend/testbed.py), for 12 joints on
-one physics clock. Every physics step, for each joint in the lab's leg order:
+one physics clock. Every physics step, for the 12 joints at once (`H54FirmwareBank`, numpy
+arrays in the lab's leg order):
 
-    firmware.compute(motor angle, motor velocity)  -> velocity-loop input, torque cap (or off)
-    plant.set_servo / set_torque_off                  (kv follows the Velocity P Gain register)
-then one MuJoCo step, then for each joint
-    firmware.report(...)   -> Present Position/Velocity/Current, overload protection
+    firmware.command(motor angles, motor velocities) -> velocity-loop inputs, torque caps, brakes
+    plant.set_servos / set_brakes                       (kv follows the Velocity P Gain register)
+then one MuJoCo step, then
+    firmware.measure(...)  -> overload protection; Present Position/Velocity/Current when read
 
 so each joint has its own servo, its own torque cap and its own overload timer, read from and
 written to its own control table (an `sim_backend.dynamixel.H54Device`, or any `ControlTable`).
+Present Current carries its noise (one seeded Generator for the 12, joint by joint); Present
+Velocity has none here (the testbed's has).
 The emulator's buses serve the tables (Dynamixel), `link_angle_rad(joint)` (CAN encoders) and
 `foot_wrench(side)` (CAN force/torque sensors).
 
@@ -24,9 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.firmware import H54Firmware
 from sim_backend.humanoid.params import N_LEG_JOINTS, RobotTruthParams
 from sim_backend.humanoid.plant import HumanoidPlant
-from sim_backend.servo import ControlTable, H54Firmware
+from sim_backend.servo import ControlTable
+from sim_backend.servo_bank import H54FirmwareBank
 from sim_backend.spec import FloorBox
 from sim_backend.step_clock import StepClock
 from sim_backend.testbed import Mounting
@@ -78,27 +83,29 @@ class EmulatedRobot:
             raise ValueError(f"an emulated robot needs {N_LEG_JOINTS} control tables")
         self.truth = truth or RobotTruthParams()
         self.tables = list(tables)
-        self.firmware = [
-            H54Firmware(table, self.truth.servo_params(i)) for i, table in enumerate(tables)
-        ]
-        self.plant = HumanoidPlant(
-            urdf_text,
-            self.truth,
-            velocity_gains_nms_per_rad=[f.velocity_gain() for f in self.firmware],
-            floor_boxes=floor_boxes,
-        )
         self.mountings = list(motor_mountings or [Mounting()] * N_LEG_JOINTS)
         if len(self.mountings) != N_LEG_JOINTS:
             raise ValueError(f"motor_mountings needs {N_LEG_JOINTS} entries")
+        self.bank = H54FirmwareBank(
+            self.tables,
+            [self.truth.servo_params(i) for i in range(N_LEG_JOINTS)],
+            directions=[m.direction for m in self.mountings],
+            offsets_rad=[m.offset_rad for m in self.mountings],
+            rng=rng or np.random.default_rng(0),
+            velocity_noise=False,
+        )
+        self.firmware = [H54Firmware(bank=self.bank, joint=i) for i in range(N_LEG_JOINTS)]
+        self.plant = HumanoidPlant(
+            urdf_text,
+            self.truth,
+            velocity_gains_nms_per_rad=self.bank.velocity_gains(),
+            floor_boxes=floor_boxes,
+        )
         self.pushes: list[PelvisPush] = []
-        self._rng = rng or np.random.default_rng(0)
         self._dt = self.plant.physics_timestep_s
-        self._torque_was_on = [False] * N_LEG_JOINTS
-        self._commands = np.zeros(N_LEG_JOINTS)
-        self._caps = np.zeros(N_LEG_JOINTS)
-        self._gains = np.array([f.velocity_gain() for f in self.firmware])
         self._no_push = np.zeros(3)
         self.clock = StepClock(self._dt)  # time in whole physics steps
+        self._link_cache: tuple[int, list[float], list[float]] = (-1, [], [])
         self.plant.place_standing(initial_leg_angles_rad, support_feet)
         for joint, table in enumerate(self.tables):
             table.set_item("Position P Gain", self.truth.position_gain_registers[joint])
@@ -134,28 +141,14 @@ class EmulatedRobot:
 
     # --- one physics step ---------------------------------------------------------------------
     def step(self) -> None:
-        """Firmware -> motors -> MuJoCo -> Present* items and protection, for all 12 joints."""
+        """Firmware -> motors -> MuJoCo -> overload protection, for all 12 joints at once."""
         plant = self.plant
-        dt = self._dt
-        angles, velocities = plant.motor_states()
-        commands, caps, gains = self._commands, self._caps, self._gains
-        for joint, firmware in enumerate(self.firmware):
-            mount = self.mountings[joint]
-            direction = mount.direction
-            out = firmware.compute(
-                direction * angles[joint] + mount.offset_rad, direction * velocities[joint], dt
-            )
-            if out.torque_on:
-                if not self._torque_was_on[joint]:
-                    plant.release_brake(joint)
-                gains[joint] = firmware.velocity_gain()
-                commands[joint] = direction * out.velocity_command_rad_s
-                caps[joint] = out.torque_limit_nm
-            else:
-                commands[joint] = caps[joint] = 0.0
-                plant.set_torque_off(joint, firmware.params.dynamic_brake_damping_nms_per_rad)
-            self._torque_was_on[joint] = out.torque_on
-        plant.set_servos(commands, caps, gains)
+        angles, velocities = plant.motor_state_arrays()
+        out = self.bank.command(angles, velocities, self._dt)
+        plant.set_servos(
+            out.velocity_command_rad_s, out.torque_limit_nm, out.velocity_gain_nms_per_rad
+        )
+        plant.set_brakes(out.brake_damping_nms_per_rad)
         scenario_time = self.scenario_time_s
         push = self._no_push
         if scenario_time is not None and self.pushes:
@@ -163,54 +156,44 @@ class EmulatedRobot:
         plant.set_pelvis_force(push)
         plant.step()
         self.clock.steps += 1
-        self._report_all()
+        angles, velocities = plant.motor_state_arrays()
+        self.bank.measure(plant.motor_torque_nm, angles, velocities, self._dt)
 
     def on_reboot(self, joint: int) -> None:
         """After a device REBOOT (RAM at its defaults): the servo holds where it stands."""
-        self.firmware[joint].on_reboot()
+        self.bank.on_reboot(joint)
         self._report(joint)
         table = self.tables[joint]
         table.set_item("Goal Position", table.item("Present Position"))
 
     def _report(self, joint: int) -> None:
-        firmware = self.firmware[joint]
-        noise_rms = firmware.params.current_noise_a
-        noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
-        mount = self.mountings[joint]
+        """One joint's measurements now (power-on, reboot), its noise drawn as a step's."""
         angle, velocity = self.plant.motor_state(joint)
-        firmware.report(
-            mount.direction * self.plant.joint_motor_torque_nm(joint),
-            mount.to_device(angle),
-            mount.direction * velocity,
-            self._dt,
-            current_noise_a=noise,
+        self.bank.report_joint(
+            joint, self.plant.joint_motor_torque_nm(joint), angle, velocity, self._dt
         )
-
-    def _report_all(self) -> None:
-        angles, velocities = self.plant.motor_states()
-        torques = self.plant.motor_torques()
-        dt = self._dt
-        for joint, firmware in enumerate(self.firmware):
-            noise_rms = firmware.params.current_noise_a
-            noise = float(self._rng.normal(0.0, noise_rms)) if noise_rms > 0 else 0.0
-            mount = self.mountings[joint]
-            direction = mount.direction
-            firmware.report(
-                direction * torques[joint],
-                direction * angles[joint] + mount.offset_rad,
-                direction * velocities[joint],
-                dt,
-                current_noise_a=noise,
-            )
 
     # --- what the sensors read (sources for the bus emulators) --------------------------------
     def link_angle_rad(self, joint: int) -> float:
         """True link angle of one joint (the CAN link encoder quantises it)."""
-        return self.plant.joint_link_angle_rad(joint)
+        return self._link_state()[0][joint]
 
     def link_velocity_rad_s(self, joint: int) -> float:
         """True link velocity of one joint."""
-        return self.plant.joint_link_velocity_rad_s(joint)
+        return self._link_state()[1][joint]
+
+    def _link_state(self) -> tuple[list[float], list[float]]:
+        """The 12 link angles and velocities after the last physics step, computed once per
+        step (12 encoders read them at every SYNC); only `step` moves the plant."""
+        steps = self.clock.steps
+        if self._link_cache[0] != steps:
+            plant = self.plant
+            self._link_cache = (
+                steps,
+                plant.link_angle_rad.tolist(),
+                plant.link_velocity_rad_s.tolist(),
+            )
+        return self._link_cache[1], self._link_cache[2]
 
     def foot_wrench(self, side: int) -> tuple[np.ndarray, np.ndarray]:
         """The ground's (force [N], moment [N m]) on foot `side` in its sensor frame."""

@@ -1,4 +1,4 @@
-"""The emulated H54 firmware's overload rule, directly (sim_backend/servo.py, `H54Firmware`).
+"""The emulated H54 firmware's overload rule, directly (sim_backend/servo.py; `H54Firmware`).
 
 The rule (documented there): a timer counts up while |current| >= overload_current_fraction x
 the current cap and counts DOWN at the same rate below it (never below 0); when it reaches
@@ -12,7 +12,8 @@ from __future__ import annotations
 import pytest
 
 from sim_backend.dynamixel.device import H54Device
-from sim_backend.servo import AMPERE_PER_CURRENT_UNIT, OVERLOAD_BIT, H54Firmware, H54ServoParams
+from sim_backend.firmware import H54Firmware
+from sim_backend.servo import AMPERE_PER_CURRENT_UNIT, OVERLOAD_BIT, H54ServoParams
 
 DT_S = 0.001
 PARAMS = H54ServoParams()  # 0.9 of the cap for 1.5 s

@@ -1,0 +1,402 @@
+"""n H54 firmwares stepped together: the servo law of servo.py on numpy arrays over joints.
+
+The law, the defaults and the overload rule are documented in sim_backend/servo.py (its
+docstring is the spec) and written out in servo_law.py; this module runs them for all n
+actuators of a plant in one update per physics step instead of n Python calls:
+
+    command(angles, velocities)     before the step: per joint, torque on or off, the
+                                    velocity-loop input and the torque cap (position loop,
+                                    speed cap, velocity-loop integral with anti-windup; velocity
+                                    and torque modes; dynamic brake while off)
+    measure(torques, angles, velocities)
+                                    after the step: the measured current (with its noise) runs
+                                    the overload timers; the Present* items are NOT written here
+
+The control tables are touched only when they change or are read:
+- registers are decoded again only for a joint whose table's `revision` moved (a write), only
+  Goal Position when nothing else was written (`goal_position_writes`: the host's every tick);
+- the Present* items of a table are written when the bus reads them: a table with
+  `attach_measurement_source` calls back before any read that may cover them, and the bank
+  converts the last step's state to device units then (all joints at once, once per step).
+
+Angles and velocities in and out are physical (the plant's frame); the bank maps them through
+each actuator's mounting (direction, offset) to the device frame its firmware works in.
+
+Noise: the Present Current (and, with `velocity_noise`, Present Velocity) noise of every step is
+drawn from one seeded Generator in joint order (current, then velocity, for each joint whose rms
+is > 0), a block of standard normals at a time (`NormalStream`): the same values as one
+`normal(0, rms)` call per draw.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from sim_backend.normal_stream import NormalStream
+from sim_backend.servo import (
+    OVERLOAD_BIT,
+    ControlTable,
+    H54ServoParams,
+    Measurements,
+    Registers,
+    decode_registers,
+    goal_angle_rad,
+)
+from sim_backend.servo_law import (
+    ARRAY,
+    SCALAR,
+    Decoded,
+    JointView,
+    overload_timer,
+    to_device_units,
+    velocity_loop,
+)
+
+
+@dataclass
+class ServoCommands:
+    """What the firmwares ask of the motors this step (physical frame, arrays of n)."""
+
+    torque_on: np.ndarray  # bool
+    velocity_command_rad_s: np.ndarray  # the implicit velocity-loop input (includes the I term)
+    torque_limit_nm: np.ndarray  # 0 where torque is off
+    velocity_gain_nms_per_rad: np.ndarray  # kv; kept at its last torque-on value while off
+    brake_damping_nms_per_rad: np.ndarray  # the dynamic brake: 0 where torque is on
+
+
+class H54FirmwareBank:
+    """The firmwares of n actuators, one control table each (see the module docstring).
+
+    directions / offsets_rad: each actuator's mounting (device = direction * physical + offset).
+    rng: the measurement noise's Generator (None: no noise is drawn).
+    velocity_noise: draw Present Velocity noise too (the testbed does; the humanoid draws only
+        the current's, as it always has: its logs stay comparable run to run).
+    """
+
+    def __init__(
+        self,
+        tables: Sequence[ControlTable],
+        params: Sequence[H54ServoParams],
+        *,
+        directions: Sequence[int] | None = None,
+        offsets_rad: Sequence[float] | None = None,
+        rng: np.random.Generator | None = None,
+        velocity_noise: bool = True,
+    ) -> None:
+        n = len(tables)
+        if n == 0 or len(params) != n:
+            raise ValueError("a firmware bank needs one H54ServoParams per control table")
+        self.tables = list(tables)
+        self.params = list(params)
+        self.n = n
+        self.direction = np.asarray(directions if directions is not None else [1] * n, float)
+        self.offset_rad = np.asarray(offsets_rad if offsets_rad is not None else [0.0] * n, float)
+        if self.direction.shape != (n,) or self.offset_rad.shape != (n,):
+            raise ValueError("directions and offsets_rad need one entry per control table")
+
+        def figure(name: str) -> np.ndarray:
+            return np.array([getattr(p, name) for p in self.params], dtype=float)
+
+        self.torque_constant = figure("torque_constant_nm_per_a")
+        self.brake_damping = figure("dynamic_brake_damping_nms_per_rad")
+        self.overload_trip_s = figure("overload_trip_time_s")
+        self._current_rms = figure("current_noise_a")
+        self._velocity_rms = figure("velocity_noise_rad_s") if velocity_noise else np.zeros(n)
+        self._voltage_decivolts = [round(p.input_voltage_v * 10) for p in self.params]
+        self._temperature_c = [round(p.temperature_c) for p in self.params]
+        # the draws of one step, in stream order: (joint, is_velocity)
+        slots = [
+            (j, kind)
+            for j in range(n)
+            for kind, rms in ((False, self._current_rms[j]), (True, self._velocity_rms[j]))
+            if rms > 0
+        ]
+        self._stream = NormalStream(rng) if rng is not None and slots else None
+        self._draws_per_step = len(slots)
+        self._current_slots = np.array([i for i, (_, v) in enumerate(slots) if not v], int)
+        self._current_joints = np.array([j for j, v in slots if not v], int)
+        self._velocity_slots = np.array([i for i, (_, v) in enumerate(slots) if v], int)
+        self._velocity_joints = np.array([j for j, v in slots if v], int)
+        self._current_noise = np.zeros(n)
+        self._velocity_noise = np.zeros(n)
+        self._velocity_noisy = len(self._velocity_joints) > 0
+        # the usual draw: the current's of every joint, in joint order
+        self._every_current = (
+            self._current_slots.tolist() == list(range(n)) == (self._current_joints.tolist())
+        )
+        self._identity_mounting = bool(np.all(self.direction == 1) and not self.offset_rad.any())
+        self._no_brakes = np.zeros(n)
+
+        self.integral_nm = np.zeros(n)
+        self.overload_timer_s = np.zeros(n)
+        self.last_current_a = np.zeros(n)
+        self._decoded = Decoded(n)
+        self._revisions = [-1] * n
+        self._goal_writes: list[int | None] = [None] * n
+        self._gains = np.zeros(n)  # kv per joint, kept at its last torque-on value while off
+        self._first = SimpleNamespace()
+        self._direction_one = self.direction[0].item()
+        self._offset_one = self.offset_rad[0].item()
+        self._refresh_registers()
+        self._gains = self._decoded.velocity_gain.copy()
+        # the last step's state in the device frame, for the lazy Present* items
+        self._angle = np.zeros(n)
+        self._velocity = np.zeros(n)
+        self._measured_velocity = np.zeros(n)
+        self._registers_measured: list[Registers | None] = list(self._decoded.registers)
+        self._sample = 0  # counts measure() calls
+        self._written = [0] * n  # the sample each table last got (-1: due after a report_joint)
+        self._units: tuple[int, list[list[int]]] | None = None
+        for joint, table in enumerate(self.tables):
+            attach = getattr(table, "attach_measurement_source", None)
+            if attach is not None:
+                attach(lambda joint=joint: self.write_measurements(joint))
+
+    # --- registers ----------------------------------------------------------------------------
+    def registers(self, joint: int) -> Registers:
+        """One joint's registers in SI, decoded again only after a write."""
+        self._refresh_registers()
+        registers = self._decoded.registers[joint]
+        assert registers is not None
+        return registers
+
+    def velocity_gains(self) -> np.ndarray:
+        self._refresh_registers()
+        return self._decoded.velocity_gain.copy()
+
+    def goal_angle_rad(self, joint: int) -> float:
+        self._refresh_registers()
+        return self._decoded.goal_angle[joint].item()
+
+    def _refresh_registers(self) -> None:
+        """Decode the registers of the joints whose table was written since the last call:
+        only Goal Position when nothing else was (the host writes it every tick)."""
+        revisions = [table.revision for table in self.tables]
+        if revisions == self._revisions:
+            return
+        decoded = self._decoded
+        for joint, (table, revision) in enumerate(zip(self.tables, revisions, strict=True)):
+            if revision == self._revisions[joint]:
+                continue
+            goal_writes = getattr(table, "goal_position_writes", None)
+            registers = decoded.registers[joint]
+            goal_only = (
+                registers is not None
+                and goal_writes is not None
+                and revision - self._revisions[joint] == goal_writes - self._goal_writes[joint]
+            )
+            if not goal_only:
+                params = self.params[joint]
+                registers = decode_registers(table, params)
+                decoded.store(joint, registers, table.torque_enabled, params)
+            assert registers is not None
+            decoded.goal_angle[joint] = goal_angle_rad(
+                table.item("Goal Position"), registers.homing_offset_pulses
+            )
+            self._goal_writes[joint] = goal_writes
+        self._revisions = revisions
+        if self.n == 1:
+            self._first = self._decoded.first()
+
+    # --- one physics step ---------------------------------------------------------------------
+    def command(
+        self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray, dt_s: float
+    ) -> ServoCommands:
+        """The velocity-loop inputs and torque caps for this step (servo.py's law on arrays).
+        The arrays returned are valid until the next call."""
+        self._refresh_registers()
+        d = self._decoded
+        on = d.torque_on
+        angles, velocities = self._device_frame(angles_rad, velocities_rad_s)
+        command, self.integral_nm = velocity_loop(
+            ARRAY, d, angles, velocities, self.integral_nm, dt_s
+        )
+        if not self._identity_mounting:
+            command = self.direction * command
+        if d.all_on:  # the usual case: no selection to make
+            self._gains = d.velocity_gain.copy()
+            return ServoCommands(on, command, d.torque_cap_nm, self._gains, self._no_brakes)
+        self._gains = np.where(on, d.velocity_gain, self._gains)
+        return ServoCommands(
+            torque_on=on,
+            velocity_command_rad_s=np.where(on, command, 0.0),
+            torque_limit_nm=np.where(on, d.torque_cap_nm, 0.0),
+            velocity_gain_nms_per_rad=self._gains,
+            brake_damping_nms_per_rad=np.where(on, 0.0, self.brake_damping),
+        )
+
+    def _device_frame(
+        self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Physical angles and velocities in each actuator's frame (device = direction x
+        physical + offset); new arrays."""
+        if self._identity_mounting:
+            return angles_rad.copy(), velocities_rad_s.copy()
+        direction = self.direction
+        return direction * angles_rad + self.offset_rad, direction * velocities_rad_s
+
+    def command_one(
+        self, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> tuple[bool, float, float]:
+        """`command` for a bank of one in Python numbers (numpy costs more than the law on one
+        joint): (torque on, velocity-loop input, torque cap), physical frame."""
+        self._refresh_registers()
+        d = self._first
+        direction = self._direction_one
+        command, integral = velocity_loop(
+            SCALAR,
+            d,
+            direction * angle_rad + self._offset_one,
+            direction * velocity_rad_s,
+            self.integral_nm[0].item(),
+            dt_s,
+        )
+        self.integral_nm[0] = integral
+        if not d.torque_on:
+            return False, 0.0, 0.0
+        return True, direction * command, d.torque_cap_nm
+
+    def measure(
+        self,
+        torques_nm: np.ndarray,
+        angles_rad: np.ndarray,
+        velocities_rad_s: np.ndarray,
+        dt_s: float,
+        *,
+        current_noise_a: np.ndarray | None = None,
+        velocity_noise_rad_s: np.ndarray | None = None,
+    ) -> None:
+        """After the step: the measured current runs the overload protection; the state is kept
+        for the Present* items (written when read). The noise is this step's draw unless given."""
+        self._refresh_registers()
+        if current_noise_a is None or velocity_noise_rad_s is None:
+            current_noise_a, velocity_noise_rad_s = self._draw_noise()
+        self._angle, self._velocity = self._device_frame(angles_rad, velocities_rad_s)
+        self._measured_velocity = (
+            self._velocity + velocity_noise_rad_s if self._velocity_noisy else self._velocity
+        )
+        torques = torques_nm if self._identity_mounting else self.direction * torques_nm
+        self.last_current_a = torques / self.torque_constant + current_noise_a
+        d = self._decoded
+        self.overload_timer_s = overload_timer(
+            ARRAY, d, abs(self.last_current_a), self.overload_timer_s, dt_s
+        )
+        tripped = self.overload_timer_s >= self.overload_trip_s
+        if tripped.any():
+            self._trip(tripped)
+        self._registers_measured = list(d.registers)
+        self._sample += 1
+
+    def measure_one(
+        self, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> None:
+        """`measure` for a bank of one in Python numbers (see `command_one`)."""
+        self._refresh_registers()
+        self._measure_joint(0, torque_nm, angle_rad, velocity_rad_s, dt_s)
+        self._registers_measured = list(self._decoded.registers)
+        self._sample += 1
+
+    def report_joint(
+        self, joint: int, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> None:
+        """`measure` for one joint alone (at power-on, after its REBOOT), drawing its noise as
+        a step does."""
+        self._refresh_registers()
+        self._measure_joint(joint, torque_nm, angle_rad, velocity_rad_s, dt_s)
+        self._registers_measured[joint] = self._decoded.registers[joint]
+        self._written[joint] = -1  # this joint's Present* items are due again
+        self._units = None
+
+    def _measure_joint(
+        self, joint: int, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
+    ) -> None:
+        current_noise, velocity_noise = self._draw_joint_noise(joint)
+        direction = self.direction[joint].item()
+        velocity = direction * velocity_rad_s
+        self._angle[joint] = direction * angle_rad + self.offset_rad[joint].item()
+        self._velocity[joint] = velocity
+        self._measured_velocity[joint] = velocity + velocity_noise
+        current = direction * torque_nm / self.torque_constant[joint].item() + current_noise
+        self.last_current_a[joint] = current
+        d = self._first if self.n == 1 else JointView(self._decoded, joint)
+        timer = overload_timer(SCALAR, d, abs(current), self.overload_timer_s[joint].item(), dt_s)
+        self.overload_timer_s[joint] = timer
+        if timer >= self.overload_trip_s[joint]:
+            self._trip(joint)
+
+    def on_reboot(self, joint: int) -> None:
+        self.integral_nm[joint] = 0.0
+        self.overload_timer_s[joint] = 0.0
+
+    def _draw_noise(self) -> tuple[np.ndarray, np.ndarray]:
+        """This step's noise of every joint (current, velocity), in stream order."""
+        current, velocity = self._current_noise, self._velocity_noise
+        if self._stream is None:
+            return current, velocity
+        draws = self._stream.take(self._draws_per_step)
+        if self._every_current and not self._velocity_noisy:
+            np.multiply(draws, self._current_rms, out=current)
+            return current, velocity
+        joints, slots = self._current_joints, self._current_slots
+        current[joints] = draws[slots] * self._current_rms[joints]
+        joints, slots = self._velocity_joints, self._velocity_slots
+        velocity[joints] = draws[slots] * self._velocity_rms[joints]
+        return current, velocity
+
+    def _draw_joint_noise(self, joint: int) -> tuple[float, float]:
+        """One joint's noise (current, then velocity), drawn as a step draws it."""
+        noise = [0.0, 0.0]
+        if self._stream is not None:
+            for kind, rms in enumerate((self._current_rms, self._velocity_rms)):
+                if rms[joint] > 0:
+                    noise[kind] = self._stream.next() * rms[joint].item()
+        return noise[0], noise[1]
+
+    def _trip(self, tripped: Any) -> None:
+        """The Overload bit for these joints (a mask, or one index); their timers restart."""
+        joints = [tripped] if isinstance(tripped, int) else np.flatnonzero(tripped).tolist()
+        for joint in joints:
+            self.tables[joint].raise_hardware_error(OVERLOAD_BIT)
+            self.overload_timer_s[joint] = 0.0
+
+    # --- the Present* items, when the bus reads them ------------------------------------------
+    def measurements(self, joint: int) -> Measurements:
+        """Joint `joint`'s Present* items from the last measured state [device units]."""
+        units = self._units
+        if units is None or units[0] != self._sample:
+            units = (self._sample, self._device_units())
+            self._units = units
+        moving, position, velocity, current = units[1]
+        return Measurements(
+            moving=moving[joint],
+            position_pulses=position[joint],
+            velocity_units=velocity[joint],
+            current_units=current[joint],
+            input_voltage_decivolts=self._voltage_decivolts[joint],
+            temperature_c=self._temperature_c[joint],
+        )
+
+    def write_measurements(self, joint: int) -> None:
+        """Write the Present* items into joint `joint`'s table if the last step's are not
+        there yet (the table calls this before a read that may cover them)."""
+        if self._written[joint] != self._sample:
+            self._written[joint] = self._sample
+            self.tables[joint].set_measurements(self.measurements(joint))
+
+    def _device_units(self) -> list[list[int]]:
+        """The last measured state in the control table's units, for all joints at once."""
+        registers = self._registers_measured
+        homing = [r.homing_offset_pulses if r else 0 for r in registers]
+        threshold = [r.moving_threshold_rad_s if r else 0.0 for r in registers]
+        state = (self._angle, self._velocity, self._measured_velocity, self.last_current_a)
+        if self.n == 1:  # Python numbers: cheaper than numpy for one joint
+            first = (a[0].item() for a in state)
+            units = to_device_units(SCALAR, *first, homing[0], threshold[0])
+            return [[int(value)] for value in units]
+        units = to_device_units(ARRAY, *state, np.array(homing, float), np.array(threshold))
+        return [value.astype(np.int64).tolist() for value in units]

@@ -1,0 +1,188 @@
+"""The H54 servo law of servo.py, written once for numpy arrays and for Python numbers.
+
+`H54FirmwareBank` (servo_bank.py) runs it on arrays over n joints (`ARRAY`) and, for a bank of
+one, on Python numbers (`SCALAR`: numpy costs more than the law on one joint). The selections
+are the only operations that differ (`ops.where`, `ops.clip`, `ops.round`); clip is max(low,
+min(high, x)) and round is half to even in both, so both give the same floats, bit for bit
+(tests/sim_backend/test_firmware_bank_equivalence.py). `Decoded` holds the registers of n
+joints as the arrays the law reads.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from sim_backend.servo import (
+    AMPERE_PER_CURRENT_UNIT,
+    EXTENDED_POSITION_MODE,
+    POSITION_MODE,
+    RAD_PER_PULSE,
+    RAD_S_PER_VELOCITY_UNIT,
+    VELOCITY_MODE,
+    H54ServoParams,
+    Registers,
+)
+
+_INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
+_INT16_MIN, _INT16_MAX = -32768, 32767
+
+
+class Decoded:
+    """The registers of all joints as arrays (SI), refreshed per joint after a write."""
+
+    def __init__(self, n: int) -> None:
+        self.position_gain = np.zeros(n)
+        self.velocity_gain = np.ones(n)
+        self.integral_rate = np.zeros(n)
+        self.current_cap_a = np.zeros(n)
+        self.torque_cap_nm = np.zeros(n)
+        self.speed_cap = np.zeros(n)
+        self.goal_angle = np.zeros(n)
+        self.goal_velocity = np.zeros(n)
+        self.goal_torque_nm = np.zeros(n)
+        self.position_mode = np.zeros(n, dtype=bool)
+        self.velocity_mode = np.zeros(n, dtype=bool)
+        self.torque_mode = np.zeros(n, dtype=bool)
+        self.homing_offset_pulses = np.zeros(n)
+        self.moving_threshold = np.zeros(n)
+        self.torque_on = np.zeros(n, dtype=bool)
+        self.neg_speed_cap = np.zeros(n)
+        self.neg_torque_cap_nm = np.zeros(n)
+        self.overload_threshold_a = np.zeros(n)
+        self.all_position_mode = True
+        self.all_on = False
+        self.registers: list[Registers | None] = [None] * n
+
+    def first(self) -> SimpleNamespace:
+        """Joint 0's figures as Python numbers (a bank of one runs the law on them)."""
+        return SimpleNamespace(
+            **{
+                name: value[0].item() if isinstance(value, np.ndarray) else value
+                for name, value in vars(self).items()
+                if name != "registers"
+            }
+        )
+
+    def store(self, joint: int, r: Registers, torque_on: bool, params: H54ServoParams) -> None:
+        kt = params.torque_constant_nm_per_a
+        self.registers[joint] = r
+        self.position_gain[joint] = r.position_gain_per_s
+        self.velocity_gain[joint] = r.velocity_gain_nms_per_rad
+        self.integral_rate[joint] = r.integral_rate_nm_per_rad
+        self.current_cap_a[joint] = r.current_cap_a
+        self.torque_cap_nm[joint] = r.current_cap_a * kt
+        self.speed_cap[joint] = r.speed_cap_rad_s
+        self.goal_velocity[joint] = r.goal_velocity_rad_s
+        self.goal_torque_nm[joint] = r.goal_torque_a * kt
+        mode = r.operating_mode
+        self.position_mode[joint] = mode in (POSITION_MODE, EXTENDED_POSITION_MODE)
+        self.velocity_mode[joint] = mode == VELOCITY_MODE
+        self.torque_mode[joint] = not (self.position_mode[joint] or self.velocity_mode[joint])
+        self.homing_offset_pulses[joint] = r.homing_offset_pulses
+        self.moving_threshold[joint] = r.moving_threshold_rad_s
+        self.torque_on[joint] = torque_on
+        self.neg_speed_cap[joint] = -self.speed_cap[joint]
+        self.neg_torque_cap_nm[joint] = -self.torque_cap_nm[joint]
+        self.overload_threshold_a[joint] = params.overload_current_fraction * r.current_cap_a
+        self.all_position_mode = bool(self.position_mode.all())
+        self.all_on = bool(self.torque_on.all())
+
+
+class JointView:
+    """One joint's decoded figures as Python numbers, read from the arrays on demand."""
+
+    def __init__(self, decoded: Decoded, joint: int) -> None:
+        self._decoded = decoded
+        self._joint = joint
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._decoded, name)[self._joint].item()
+
+
+class _ArrayOps:
+    """The law's selections on numpy arrays (elementwise, as the scalar ones)."""
+
+    @staticmethod
+    def clip(value: Any, low: Any, high: Any) -> Any:
+        return np.maximum(low, np.minimum(high, value))
+
+    where = staticmethod(np.where)
+    maximum = staticmethod(np.maximum)
+    round = staticmethod(np.rint)  # half to even, as Python's round
+
+
+class _ScalarOps:
+    """The law's selections on Python numbers."""
+
+    @staticmethod
+    def clip(value: Any, low: Any, high: Any) -> Any:
+        return max(low, min(high, value))
+
+    @staticmethod
+    def where(condition: Any, if_true: Any, if_false: Any) -> Any:
+        return if_true if condition else if_false
+
+    maximum = staticmethod(max)
+    round = staticmethod(round)
+
+
+ARRAY, SCALAR = _ArrayOps(), _ScalarOps()
+
+
+def velocity_loop(
+    ops: Any, d: Any, angle: Any, velocity: Any, integral: Any, dt_s: float
+) -> tuple[Any, Any]:
+    """servo.py's cascade, device frame: (the velocity-loop input, the new integral [N m]).
+
+    Position modes: w* = Kpp (goal - angle) clipped to the speed cap; velocity mode: w* = Goal
+    Velocity; the torque kv (w* - w) + integral is clipped to the cap by MuJoCo, and the
+    integral (of kv/Ti (w* - w)) integrates only while that torque is not clipped or it is
+    unwinding, itself clipped to the cap. Torque mode: the current loop follows Goal Torque
+    (the integral is left alone). Torque off: the integral resets. Written once for numpy
+    arrays (`ARRAY`) and Python numbers (`SCALAR`)."""
+    speed_command = ops.clip(d.position_gain * (d.goal_angle - angle), d.neg_speed_cap, d.speed_cap)
+    if not d.all_position_mode:
+        speed_command = ops.where(d.velocity_mode, d.goal_velocity, speed_command)
+    speed_error = speed_command - velocity
+    unclipped = d.velocity_gain * speed_error + integral
+    integrate = (abs(unclipped) < d.torque_cap_nm) | (unclipped * speed_error < 0)
+    integrated = ops.clip(
+        integral + d.integral_rate * speed_error * dt_s, d.neg_torque_cap_nm, d.torque_cap_nm
+    )
+    new_integral = ops.where(integrate, integrated, integral)
+    command = speed_command + new_integral / d.velocity_gain
+    if not d.all_position_mode:
+        new_integral = ops.where(d.torque_mode, integral, new_integral)
+        command = ops.where(d.torque_mode, velocity + d.goal_torque_nm / d.velocity_gain, command)
+    return command, ops.where(d.torque_on, new_integral, 0.0)
+
+
+def overload_timer(ops: Any, d: Any, current_abs_a: Any, timer_s: Any, dt_s: float) -> Any:
+    """servo.py's overload rule: the timer runs up while |I| >= the fraction of the current
+    cap, down (at the same rate) below it, never below 0; reset while torque is off."""
+    near_limit = current_abs_a >= d.overload_threshold_a
+    timer_s = ops.where(near_limit, timer_s + dt_s, timer_s - dt_s)
+    return ops.where(d.torque_on, ops.maximum(0.0, timer_s), 0.0)
+
+
+def to_device_units(
+    ops: Any,
+    angle: Any,
+    velocity: Any,
+    measured_velocity: Any,
+    current: Any,
+    homing_offset_pulses: Any,
+    moving_threshold_rad_s: Any,
+) -> tuple[Any, Any, Any, Any]:
+    """(Moving, Present Position, Present Velocity, Present Current) in the control table's
+    units (e-Manual: pulses, 0.00199234 rpm, 16.11328 mA), rounded half to even and saturated
+    to the items' sizes; the device frame in, Homing Offset subtracted from the position."""
+    return (
+        abs(velocity) > moving_threshold_rad_s,
+        ops.clip(ops.round(angle / RAD_PER_PULSE - homing_offset_pulses), _INT32_MIN, _INT32_MAX),
+        ops.clip(ops.round(measured_velocity / RAD_S_PER_VELOCITY_UNIT), _INT32_MIN, _INT32_MAX),
+        ops.clip(ops.round(current / AMPERE_PER_CURRENT_UNIT), _INT16_MIN, _INT16_MAX),
+    )
