@@ -1,11 +1,8 @@
 """What the emulator builds: the spec `hil` writes (from the configuration file and an
-experiment's world) and the emulator process reads (JSON: `spec_to_json` / `spec_from_json`,
-through `python -m sim_backend --spec-file`, or `hil emulate --spec-file`)."""
+experiment's world) and the emulator process reads (as JSON: sim_backend/spec_json.py)."""
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -15,7 +12,7 @@ from sim_backend.canbus.encoder_node import RLC2IC_NOISE_COUNTS_RMS
 from sim_backend.canbus.force_sensor_node import FORCE_SENSOR_NOISE_N_RMS
 from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
 from sim_backend.dynamixel import BAUD_RATE_BPS
-from sim_backend.plant import ObstacleParams, TestbedPlantParams
+from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import Scenario
 from sim_backend.servo import H54ServoParams
 
@@ -140,44 +137,3 @@ class EmulatorSpec:
             raise ValueError("period_s must be > 0")
         if not 0 <= self.usb_latency_timer_s <= 0.255:  # FTDI: 1..255 ms
             raise ValueError("usb_latency_timer_s must be in 0..0.255 s")
-
-
-def spec_to_json(spec: EmulatorSpec) -> str:
-    return json.dumps(dataclasses.asdict(spec))
-
-
-def spec_from_json(text: str) -> EmulatorSpec:
-    raw = json.loads(text)
-    plant = dict(raw["plant"])
-    obstacle = plant.pop("obstacle", None)
-    humanoid = raw.get("humanoid")
-    return EmulatorSpec(
-        joints=tuple(EmulatedJointSpec(**j) for j in raw["joints"]),
-        baudrate=raw["baudrate"],
-        can_bitrate=raw["can_bitrate"],
-        force_sensor_node_id=raw["force_sensor_node_id"],
-        period_s=raw["period_s"],
-        clock=raw["clock"],
-        seed=raw["seed"],
-        plant=TestbedPlantParams(
-            **plant, obstacle=ObstacleParams(**obstacle) if obstacle else None
-        ),
-        servo=H54ServoParams(**raw["servo"]),
-        scenario=Scenario.from_dict(raw["scenario"]),
-        reboot_time_s=raw["reboot_time_s"],
-        heartbeat_ms=raw["heartbeat_ms"],
-        sensor_noise=SensorNoise(**raw["sensor_noise"]),
-        usb_latency_timer_s=raw["usb_latency_timer_s"],
-        can_bootup_delay_s=raw["can_bootup_delay_s"],
-        robot=raw["robot"],
-        humanoid=HumanoidSpec(
-            urdf_text=humanoid["urdf_text"],
-            ft_sensor_node_ids=tuple(humanoid["ft_sensor_node_ids"]),
-            initial_leg_angles_rad=tuple(humanoid["initial_leg_angles_rad"]),
-            support_feet=tuple(humanoid["support_feet"]),
-            truth=humanoid["truth"],
-            floor_boxes=tuple(FloorBox(**box) for box in humanoid.get("floor_boxes", ())),
-        )
-        if humanoid
-        else None,
-    )

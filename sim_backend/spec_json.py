@@ -1,5 +1,5 @@
 """An `EmulatorSpec` as JSON and back: how `hil run` hands its embedded emulator the robot to be
-(`hil emulate --spec-file`), readable without loading anything but sim_backend."""
+(`python -m sim_backend --spec-file`), readable without loading anything but sim_backend."""
 
 from __future__ import annotations
 

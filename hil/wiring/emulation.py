@@ -34,11 +34,8 @@ from sim_backend.spec import (
     FloorBox,
     HumanoidSpec,
     SensorNoise,
-    spec_from_json,
-    spec_to_json,
 )
-from sim_backend.spec_json import spec_from_json as spec_from_json  # re-exported
-from sim_backend.spec_json import spec_to_json
+from sim_backend.spec_json import spec_from_json, spec_to_json  # spec_from_json re-exported
 
 __all__ = [
     "EmbeddedEmulator",
