@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from hil.experiments.legs import anchor_feet, leg_model, placed_configuration
+from hil.experiments.walking_kinematics import WalkingKinematics, stopped_at_s
 from hil.output.plots import ComparisonRun, comparison_title, save_figure
 
 FOOT_COLOUR = "#9b59b6"  # the paper's purple foot placements
@@ -75,8 +77,6 @@ def lateral_zmp_figure(
     """Fig. 7: per controller, the desired and the measured lateral ZMP, with the feet."""
     from matplotlib.figure import Figure
 
-    from hil.experiments.walking import WalkingKinematics
-
     ordered = sorted(runs, key=lambda r: r.choice.kind.value)
     figure = Figure(figsize=(9.0, 2.1 * len(ordered) + 1.0), layout="constrained")
     axes = np.atleast_1d(figure.subplots(len(ordered), 1, sharex=True, sharey=True))
@@ -108,13 +108,11 @@ def _paper_order(runs: Sequence[ComparisonRun]) -> list[ComparisonRun]:
     return sorted(runs, key=lambda r: order.get(r.choice.kind.value, 9))
 
 
-def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: Any) -> None:
+def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: WalkingKinematics) -> None:
     """The fall (red) and the safety stop (black) on a time axis."""
-    from hil.experiments.walking import _stopped_at_s
-
     for when, what, colour in (
         (kinematics.fall_time_s(), "fell", "r"),
-        (_stopped_at_s(entry.run), "safety stop", "k"),
+        (stopped_at_s(entry.run), "safety stop", "k"),
     ):
         if when is not None:
             ax.axvline(when, color=colour, lw=0.8, ls=":")
@@ -122,10 +120,8 @@ def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: Any) -> None:
 
 
 def _row_label(entry: ComparisonRun, kinematics: Any) -> str:
-    from hil.experiments.walking import _stopped_at_s
-
     label = entry.label.replace(" (", "\n(")
-    fell, stopped = kinematics.fall_time_s(), _stopped_at_s(entry.run)
+    fell, stopped = kinematics.fall_time_s(), stopped_at_s(entry.run)
     if stopped is not None:
         label += f"\nstop {stopped:.2f} s"
     if fell is not None:
@@ -163,9 +159,7 @@ def _draw_frame(
     angles logged nearest `time_s`, or "stopped" when the log has none."""
     from matplotlib.patches import Rectangle
 
-    from hil.experiments.walking import _leg_model, _placed_configuration
-
-    model = _leg_model()
+    model = leg_model()
     pattern = experiment.pattern
     half_length = model.sole_boxes[0].size_m[0] / 2.0
     for box in experiment.world.floor_objects:
@@ -181,7 +175,7 @@ def _draw_frame(
     rows = np.flatnonzero(np.abs(kinematics.time_s - time_s) < 0.5 * kinematics.period_s)
     if rows.size and np.isfinite(kinematics.links_rad[rows[0]]).all():
         tick = min(pattern.n_ticks - 1, int(round(time_s / pattern.dt_s)))
-        _placed_configuration(
+        placed_configuration(
             model, kinematics.links_rad[rows[0]], int(anchors[tick]), pattern, tick
         )
         for side in (1, 0):  # the left leg on top
@@ -209,11 +203,9 @@ def step_sequence_figure(
     """Fig. 8: stick figures (side view) of every controller's legs around the object step."""
     from matplotlib.figure import Figure
 
-    from hil.experiments.walking import WalkingKinematics, _anchor_feet
-
     ordered = _paper_order(runs)
     pattern = experiment.pattern
-    anchors = _anchor_feet(pattern)
+    anchors = anchor_feet(pattern)
     times = _frame_times(experiment)
     figure = Figure(figsize=(1.5 * N_FRAMES + 1.0, 2.3 * len(ordered) + 2.6), layout="constrained")
     grid = figure.add_gridspec(len(ordered) + 1, N_FRAMES, height_ratios=[1] * len(ordered) + [1.1])
