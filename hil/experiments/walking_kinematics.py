@@ -23,16 +23,14 @@ import contextlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from drivers.joint_bus import wrench_keys
+from hil.experiments.base import World
 from hil.experiments.legs import anchor_feet, leg_model, pelvis_rotation, placed_configuration
 from hil.output.rundir import RunData
-
-if TYPE_CHECKING:
-    from hil.experiments.walking import WalkingExperiment
 
 FEET = ("left_foot", "right_foot")
 GRAVITY_M_S2 = 9.81
@@ -42,6 +40,28 @@ LIFTED_FRACTION = 0.5  # of its single support, a swing foot off the ground
 FALL_MARGIN_M = 0.01
 FALL_TIME_S = 0.1
 FALL_TILT_RAD = 0.3
+
+
+class PlannedWalk(Protocol):
+    """What the metrics read of a walking experiment (hil/experiments/walking.py)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def n_steps(self) -> int: ...
+
+    @property
+    def object_footstep(self) -> int | None: ...
+
+    @property
+    def world(self) -> World: ...
+
+    @property
+    def plan(self) -> Any: ...  # controller.walking.FootstepPlan
+
+    @property
+    def pattern(self) -> Any: ...  # controller.walking.WalkingPattern
 
 
 @dataclass(frozen=True)
@@ -64,7 +84,7 @@ class WalkingKinematics:
     period_s: float
 
     @classmethod
-    def of(cls, run: RunData, experiment: WalkingExperiment) -> WalkingKinematics:
+    def of(cls, run: RunData, experiment: PlannedWalk) -> WalkingKinematics:
         from controller.humanoid import FootWrench, NoSupportError, zmp_from_foot_wrenches
 
         model = leg_model()
@@ -132,7 +152,7 @@ class WalkingKinematics:
             candidates.append(float(self.time_s[tilted[0]]))
         return min(candidates) if candidates else None
 
-    def steps_completed(self, experiment: WalkingExperiment, fell_at: float | None) -> int:
+    def steps_completed(self, experiment: PlannedWalk, fell_at: float | None) -> int:
         """Footsteps the robot really took (module docstring), counted in order: the first that
         was not taken ends the count; `fell_at`: none counts that ends after it."""
         timeline = experiment.pattern.timeline
@@ -159,7 +179,7 @@ class WalkingKinematics:
             count += 1
         return count
 
-    def object_foot_height_m(self, experiment: WalkingExperiment) -> float | None:
+    def object_foot_height_m(self, experiment: PlannedWalk) -> float | None:
         """The height of the object's foot above the other sole, as the robot's kinematics see
         it, in the double support after it landed on the object (the median)."""
         index = experiment.object_footstep

@@ -9,19 +9,16 @@ import contextlib
 import functools
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
+from hil.experiments.walking_kinematics import PlannedWalk
 from hil.output.records import RunEntry
 from hil.output.report import Missing, Relation, check, find, metric
 from hil.vocabulary import ControllerKind
 
-if TYPE_CHECKING:
-    from hil.experiments.walking import WalkingExperiment
-
 ZMP_CLAIM_M = 0.02  # "The ZMP tracking error was within 2cm" (Sec. V)
 
 
-def _walked(experiment: WalkingExperiment, entry: RunEntry | None, what: str) -> tuple[bool, str]:
+def _walked(experiment: PlannedWalk, entry: RunEntry | None, what: str) -> tuple[bool, str]:
     """Did the run walk its whole plan (no fall, no safety stop), and a summary of it."""
     steps = metric(entry, "steps_completed", what)
     fell = metric(entry, "fell", what)
@@ -44,7 +41,7 @@ def _rms_of(entry: RunEntry | None, what: str) -> float:
     return math.inf if value is None else float(value)
 
 
-def _within_2cm(experiment: WalkingExperiment, dob: RunEntry | None) -> tuple[bool, str]:
+def _within_2cm(experiment: PlannedWalk, dob: RunEntry | None) -> tuple[bool, str]:
     lateral = metric(dob, "zmp_max_error_lateral_m", "gc+lqr+dob")
     sagittal = metric(dob, "zmp_max_error_sagittal_m", "gc+lqr+dob")
     ok, steps = _walked(experiment, dob, "gc+lqr+dob")
@@ -55,7 +52,7 @@ def _within_2cm(experiment: WalkingExperiment, dob: RunEntry | None) -> tuple[bo
 
 
 def _beats(
-    experiment: WalkingExperiment,
+    experiment: PlannedWalk,
     winners: Sequence[tuple[RunEntry | None, str]],
     losers: Sequence[tuple[RunEntry | None, str]],
 ) -> tuple[bool, str]:
@@ -74,13 +71,13 @@ def _beats(
     return holds, "ZMP rms while walking: " + ", ".join(parts)
 
 
-def _none_walked(experiment: WalkingExperiment, entries: Sequence[RunEntry | None]) -> bool:
+def _none_walked(experiment: PlannedWalk, entries: Sequence[RunEntry | None]) -> bool:
     with contextlib.suppress(Missing):
         return not any(_walked(experiment, e, e.choice.label)[0] for e in entries if e)
     return False
 
 
-def walking_relations(experiment: WalkingExperiment, entries: Sequence[RunEntry]) -> list[Relation]:
+def walking_relations(experiment: PlannedWalk, entries: Sequence[RunEntry]) -> list[Relation]:
     """The paper's claims that concern this experiment (a walk that fell, stopped or took fewer
     steps than planned does not count as walking)."""
     exp = experiment.name
@@ -148,7 +145,7 @@ def walking_relations(experiment: WalkingExperiment, entries: Sequence[RunEntry]
     return relations
 
 
-def _object_note(experiment: WalkingExperiment) -> str:
+def _object_note(experiment: PlannedWalk) -> str:
     boxes = experiment.world.floor_objects
     height = f"a box {boxes[0].height_m * 1e3:.0f} mm high" if boxes else "no box"
     return f"{height} under footstep {(experiment.object_footstep or 0) + 1}"
