@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from controller import (
     COMPOSITION_READINGS,
     LAB_KDIST_RAMP_S,
+    GcCompliance,
     LINK_VELOCITY_INCREMENTS,
     LQR_DESIGNS,
 )
@@ -131,11 +132,15 @@ class JointSection(Section):
 
 
 class JointModelSection(Section):
-    """Per-joint overrides of the model's gear and servo figures."""
+    """Per-joint overrides of the model's gear and servo figures (`[model.joint.NAME]`; the
+    first table of a `hil identify` fragment)."""
 
     stiffness_nm_per_rad: float | None = Field(None, gt=0)
     damping_nms_per_rad: float | None = Field(None, ge=0)
     servo_gain_per_s: float | None = Field(None, gt=0)
+    position_gain_per_s: float | None = Field(None, gt=0)
+    velocity_gain_nms_per_rad: float | None = Field(None, gt=0)
+    velocity_integral_time_s: float | None = Field(None, gt=0)
 
 
 class ModelSection(Section):
@@ -151,6 +156,15 @@ class ModelSection(Section):
     singular) or "closed-chain" (the whole Sm, designed on the motions the legs and the ground
     allow: controller/lqr.py; docs/studies/lqr_standing/ says why).
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
+
+    The position servo's cascade, as `hil identify` fits it (same keys and units, so that its
+    fragment pastes here): `position_gain_per_s` Kpp (None: `servo_gain_per_s`, the paper's
+    first-order Kp of (4), which a cascade with a fast velocity loop is), the velocity loop's
+    `velocity_gain_nms_per_rad` kv and `velocity_integral_time_s` Ti. The defaults are the
+    H54-200-S500-R's at its default registers as the emulator models them
+    (sim_backend/servo.py: kv = 2 pi 50 Hz x 0.25 kg m^2, Ti from the stock I/P gain ratio):
+    its static stiffness Kpp kv = 785 N m/rad is what the gravity compensator's "joint"
+    compliance adds to the gear's (`[controller] gc_compliance`; `hil model` prints both).
     """
 
     robot: Literal["single_link", "dyros-jet"] = "single_link"
@@ -160,6 +174,9 @@ class ModelSection(Section):
     stiffness_nm_per_rad: float = Field(2000.0, gt=0)
     damping_nms_per_rad: float = Field(100.0, ge=0)
     servo_gain_per_s: float = Field(10.0, gt=0)
+    position_gain_per_s: float | None = Field(None, gt=0)  # None: servo_gain_per_s
+    velocity_gain_nms_per_rad: float = Field(78.5, gt=0)
+    velocity_integral_time_s: float = Field(15.0, gt=0)
     link_inertia_kg_m2: float = Field(0.376, gt=0)
     gravity_moment_kg_m: float = Field(0.63, ge=0)
     joint: dict[str, JointModelSection] = Field(default_factory=dict)
@@ -167,14 +184,24 @@ class ModelSection(Section):
     def joint_figure(self, joint: str, key: str) -> float:
         override = self.joint.get(joint)
         value = getattr(override, key) if override is not None else None
+        if value is None and key == "position_gain_per_s" and self.position_gain_per_s is None:
+            return self.joint_figure(joint, "servo_gain_per_s")
         return float(value if value is not None else getattr(self, key))
 
 
 class ControllerSection(Section):
     """The controller (Kim et al. Sec. III) and its options; controller/controllers.py
-    ControllerParams says what each does. The choices are the controller package's own."""
+    ControllerParams says what each does. The choices are the controller package's own.
+
+    gc_compliance: what the gravity compensator (8) offsets, ug = C tau_g: "joint" (default),
+    C = 1/K + 1/(Kpp kv) from [model], the gear in series with the position servo's static
+    stiffness, which is what the joint deflects under a load on the time scale of a step;
+    "gear", the paper's literal K^-1, exact only for a servo that holds any load without lag
+    (its model (4)). controller/gravity.py derives it; docs/humanoid.md compares the two.
+    """
 
     name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
+    gc_compliance: GcCompliance = Field(GcCompliance.JOINT, strict=False)
     kdist: float = Field(1.0, ge=0)
     kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
     q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
