@@ -18,9 +18,9 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from controller import (
     COMPOSITION_READINGS,
     LAB_KDIST_RAMP_S,
-    GcCompliance,
     LINK_VELOCITY_INCREMENTS,
     LQR_DESIGNS,
+    GcCompliance,
 )
 from hil.vocabulary import ControllerKind, EmulatorClock, Reaction, SafetyCause
 
@@ -254,7 +254,9 @@ def _reaction(default: Reaction) -> Any:
 class SafetySection(Section):
     """What the supervisor watches and what it does about it (README, "Safety").
 
-    link_noise_*: the link-encoder noise watch (hil/safety/watches.py LinkNoiseWatch).
+    link_noise_*: the link-encoder noise watch (hil/safety/link_watches.py LinkNoiseWatch); what
+        it finds is `link_noisy` (the encoder) or `oscillation` (the joint: the motor moves back
+        and forth with the link), each with its reaction `on_link_noisy` / `on_oscillation`.
     overrun_window_s: missed deadlines are counted over this sliding window.
     zero_offset_margin_rad: at rest with torque off, how far the link and motor angles may
         disagree before the zero offsets are called wrong (the start gate refuses the run,
@@ -287,6 +289,7 @@ class SafetySection(Section):
     on_bus_error: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_link_stale: Reaction = _reaction(Reaction.HOLD)
     on_link_noisy: Reaction = _reaction(Reaction.HOLD)
+    on_oscillation: Reaction = _reaction(Reaction.HOLD)
     on_deflection: Reaction = _reaction(Reaction.HOLD)
     on_current: Reaction = _reaction(Reaction.BACK_OFF)
     on_command_invalid: Reaction = _reaction(Reaction.HOLD)
