@@ -95,6 +95,6 @@ def cmd_model(args: argparse.Namespace) -> int:
         for i, (h, u) in enumerate(zip(heads, units, strict=True))
     ]
     for line in (heads, units, *cells):
-        first = line[0].ljust(widths[0])
-        out.write("  ".join([first, *(v.rjust(w) for v, w in zip(line[1:], widths[1:]))]) + "\n")
+        padded = [v.rjust(w) for v, w in zip(line, widths, strict=True)]
+        out.write("  ".join([line[0].ljust(widths[0]), *padded[1:]]) + "\n")
     return ExitCode.OK

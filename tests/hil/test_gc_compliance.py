@@ -48,7 +48,7 @@ def test_compliance_by_hand() -> None:
     """1/K + 1/(Kpp kv) with the H54's figures: 1/2000 + 1/(10 x 78.5) and, at the knees'
     Kpp = 18 (the lab's), 1/2000 + 1/1413; the paper's reading is 1/2000."""
     assert joint_static_compliance(2000.0, 10.0, 78.5) == pytest.approx(0.0005 + 1 / 785)
-    assert 0.0005 + 1 / 785 == pytest.approx(0.00177389, abs=1e-8)
+    assert pytest.approx(0.00177389, abs=1e-8) == 0.0005 + 1 / 785
     testbed = load_config()
     assert gc_compliance(testbed) == pytest.approx([0.00177389], abs=1e-8)
     assert gc_compliance(testbed, GcCompliance.GEAR) == pytest.approx([0.0005])
