@@ -52,7 +52,8 @@ from typing import Any
 
 import numpy as np
 
-from hil.experiments.base import Experiment, FloorObject, World
+from hil.config import Config
+from hil.experiments.base import Experiment, FloorObject, ReferenceFeedback, World
 from hil.experiments.legs import leg_model, support_state
 from hil.experiments.walking_kinematics import (
     WalkingKinematics,
@@ -65,6 +66,7 @@ from hil.output.plots import ComparisonRun, WorldMarks
 from hil.output.records import RunEntry
 from hil.output.report import Column, Relation, number
 from hil.output.rundir import RunData
+from hil.vocabulary import ControllerChoice
 
 SLOW_TIMING_S = (0.8, 3.2)  # single, double support (Sec. IV-C)
 DYNAMIC_TIMING_S = (0.8, 0.3)
@@ -172,6 +174,15 @@ class WalkingExperiment(Experiment):
     def reference_range(self, n_joints: int) -> tuple[np.ndarray, np.ndarray]:
         angles = self.pattern.joint_angles_rad
         return angles.min(axis=0), angles.max(axis=0)
+
+    def reference_feedback(
+        self, config: Config, choice: ControllerChoice
+    ) -> ReferenceFeedback | None:
+        """The lab's walking scheme (walking_scheme.py, `[walking]`): the CoM feedback on the
+        pelvis for every controller, the position-mode terms for the default one (`pid`)."""
+        from hil.experiments.walking_scheme import LabWalkingScheme
+
+        return LabWalkingScheme.for_run(self.pattern, config, choice)
 
     def phase(self, time_s: float) -> str:
         return self.pattern.timeline.phase(self._tick(time_s)).kind.value
