@@ -1,7 +1,8 @@
 """The four controllers of Kim et al., ICRA 2018, Sec. IV, behind one interface the loop uses.
 
     "pid"         the actuator's own position control: the desired link angle goes straight
-                  to the servo as its goal (the paper's "PID" / default controller).
+                  to the servo as its goal (the paper's "PID" / default controller; on the
+                  walks the lab's scheme shapes that reference: hil/experiments/walking_scheme.py).
     "gc"          gravity compensator only: u = theta_d + ug(theta_d), (8) (ug = C tau_g, C the
                   paper's K^-1 or the whole joint's compliance: controller/gravity.py).
     "gc+lqr"      GC + the discrete derivative-form LQR (21)-(24): u = uc + ug.

@@ -90,7 +90,7 @@ def lateral_zmp_figure(
         ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label="measured", **style)
         ax.set_ylim(*ZMP_AXIS_M)
         _mark_fall(ax, entry, kinematics)
-        ax.set_ylabel(f"{entry.label}\nZMP y [m]")
+        ax.set_ylabel(f"{walking_label(entry)}\nZMP y [m]", fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.set_xlim(0.0, pattern.time_s[-1])
         ax.legend(fontsize=7, loc="upper right")
@@ -101,6 +101,17 @@ def lateral_zmp_figure(
         fontsize=9,
     )
     return save_figure(figure, path)
+
+
+def walking_label(entry: ComparisonRun) -> str:
+    """The run's controller as the walks name it: `pid` with the lab's position-mode terms is
+    the paper's default controller (the actuator's own position control with the lab's
+    walking scheme, hil/experiments/walking_scheme.py); the scheme's terms come from the run's
+    summary.json."""
+    scheme = str(entry.run.summary.get("reference_feedback") or "")
+    if entry.choice.kind.value == "pid" and "deflection model" in scheme:
+        return "default (pid + the lab's scheme)"
+    return entry.label
 
 
 def _paper_order(runs: Sequence[ComparisonRun]) -> list[ComparisonRun]:
@@ -120,7 +131,7 @@ def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: WalkingKinematics) -> 
 
 
 def _row_label(entry: ComparisonRun, kinematics: Any) -> str:
-    label = entry.label.replace(" (", "\n(")
+    label = walking_label(entry).replace(" (", "\n(")
     fell, stopped = kinematics.fall_time_s(), stopped_at_s(entry.run)
     if stopped is not None:
         label += f"\nstop {stopped:.2f} s"
@@ -216,7 +227,7 @@ def step_sequence_figure(
         kinematics = WalkingKinematics.of(entry.run, experiment)
         style = entry.style.kwargs()
         style["linestyle"] = "-"
-        zmp_ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label=entry.label, **style)
+        zmp_ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label=walking_label(entry), **style)
         for column, time_s in enumerate(times):
             ax = figure.add_subplot(grid[row, column])
             _draw_frame(ax, experiment, kinematics, float(time_s), anchors)
