@@ -97,6 +97,15 @@ def walking_relations(experiment: PlannedWalk, entries: Sequence[RunEntry]) -> l
             )
         )
     if exp == "walk-slow":
+        for entry, name in ((pid, "pid"), (gc, "gc"), (lqr, "gc+lqr"), (dob, "gc+lqr+dob")):
+            relations.append(
+                check(
+                    exp,
+                    f"{_named(name)} completes the slow walk (every step, no fall, no safety stop)",
+                    "Sec. IV-C, Fig. 7(a): all four controllers walk slowly",
+                    functools.partial(_walked, experiment, entry, name),
+                )
+            )
         relations.append(
             check(
                 exp,
@@ -143,6 +152,12 @@ def walking_relations(experiment: PlannedWalk, entries: Sequence[RunEntry]) -> l
             )
         )
     return relations
+
+
+def _named(controller: str) -> str:
+    """The paper's names: `pid` on a walk is its default controller (the actuator's own
+    position control with the lab's walking scheme)."""
+    return "the default controller (pid)" if controller == "pid" else controller.upper()
 
 
 def _object_note(experiment: PlannedWalk) -> str:

@@ -15,7 +15,8 @@ from hil.config import load_config
 from hil.experiments import IMPACT, STAND, WALK_SLOW
 from hil.experiments.legs import leg_model
 from hil.experiments.walking_scheme import LabWalkingScheme
-from hil.vocabulary import ControllerChoice, ControllerKind
+from hil.output.records import RunEntry, RunResult
+from hil.vocabulary import ControllerChoice, ControllerKind, RunEnding, Termination
 from tests.support.rig import run_in_process
 
 PATTERN = WALK_SLOW.pattern
@@ -105,3 +106,39 @@ def test_the_loop_follows_and_logs_the_corrected_reference(config, tmp_path: Pat
     assert np.abs(logged[started] - expected).max() < 1e-9
     assert np.abs(expected - planned)[:, [3, 9]].min() > 0.01  # the knees: ~11 mrad
     assert np.abs(goals[started][1:] - logged[started][1:]).max() < 1e-9
+
+
+def _entry(kind: ControllerKind, steps: int, fell: bool, stopped: float | None) -> RunEntry:
+    metrics = {
+        "steps_completed": steps,
+        "fell": fell,
+        "fell_at_s": 11.2 if fell else None,
+        "stopped_at_s": stopped,
+        "zmp_rms_error_m": 0.03,
+    }
+    ending = RunEnding(Termination.COMPLETED if stopped is None else Termination.SAFETY_STOP)
+    choice = ControllerChoice(kind, 0.2)
+    return RunEntry("walk-slow", choice, RunResult(Path("."), ending, metrics))
+
+
+def test_the_slow_walk_is_checked_for_every_controller() -> None:
+    """Fig. 7(a) walks all four controllers slowly: one relation each (the default controller
+    named so); a fall, a safety stop or a missing step is not a walk."""
+    entries = [
+        _entry(ControllerKind.PID, 2, True, 15.1),
+        _entry(ControllerKind.GC, 4, False, None),
+        _entry(ControllerKind.GC_LQR, 4, False, 3.0),
+        _entry(ControllerKind.GC_LQR_DOB, 3, False, None),
+    ]
+    verdicts = {
+        r.claim: r.holds
+        for r in WALK_SLOW.relations(entries)
+        if "completes the slow walk" in r.claim
+    }
+    assert verdicts == {
+        "the default controller (pid) completes the slow walk (every step, no fall, no safety "
+        "stop)": False,
+        "GC completes the slow walk (every step, no fall, no safety stop)": True,
+        "GC+LQR completes the slow walk (every step, no fall, no safety stop)": False,
+        "GC+LQR+DOB completes the slow walk (every step, no fall, no safety stop)": False,
+    }
