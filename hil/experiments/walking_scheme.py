@@ -19,10 +19,17 @@ own position control (`pid`) with the lab's walking scheme (all three terms).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
+from controller.walking import (
+    CenterOfMassFeedback,
+    CenterOfMassMeasurement,
+    DeflectionModel,
+    LegIkError,
+    SupportHipRollOffsets,
+    WalkingPattern,
+    yaw_rotation,
+)
 from hil.config import Config
 from hil.experiments.base import ReferenceFeedback
 from hil.experiments.legs import anchor_feet, leg_model, placed_configuration, support_state
@@ -34,11 +41,11 @@ class LabWalkingScheme(ReferenceFeedback):
 
     def __init__(
         self,
-        pattern: Any,
+        pattern: WalkingPattern,
         *,
-        com_feedback: Any = None,
-        deflection: Any = None,
-        hip_roll: Any = None,
+        com_feedback: CenterOfMassFeedback | None = None,
+        deflection: DeflectionModel | None = None,
+        hip_roll: SupportHipRollOffsets | None = None,
     ) -> None:
         self.pattern = pattern
         self.com_feedback = com_feedback
@@ -57,11 +64,9 @@ class LabWalkingScheme(ReferenceFeedback):
 
     @classmethod
     def for_run(
-        cls, pattern: Any, config: Config, choice: ControllerChoice
+        cls, pattern: WalkingPattern, config: Config, choice: ControllerChoice
     ) -> LabWalkingScheme | None:
         """The terms `[walking]` switches on for this controller; None when there are none."""
-        from controller.walking import CenterOfMassFeedback, DeflectionModel, SupportHipRollOffsets
-
         walking = config.walking
         position_mode = choice.kind is ControllerKind.PID
         feedback = (
@@ -114,8 +119,7 @@ class LabWalkingScheme(ReferenceFeedback):
     def _com_corrected(self, tick: int, planned: np.ndarray, links: np.ndarray) -> np.ndarray:
         """The planned angles with the pelvis moved by the updated correction (the plan's own
         angles, and the correction kept, where the IK cannot reach)."""
-        from controller.walking import CenterOfMassMeasurement, LegIkError, yaw_rotation
-
+        assert self.com_feedback is not None
         pattern, model = self.pattern, self._model
         pelvis = np.array(pattern.pelvis_position_m[tick], dtype=float)
         if self.com_feedback.measured_from is CenterOfMassMeasurement.STANCE_SOLE:
