@@ -30,10 +30,14 @@ from controller.estimation import (
     LinkVelocityIncrement,
 )
 from controller.gravity import (
+    GC_COMPLIANCES,
+    GcCompliance,
     GravityCompensator,
     GravityModel,
     NoGravity,
     PendulumGravity,
+    joint_static_compliance,
+    servo_static_stiffness,
     support_force_split,
 )
 from controller.lqr import (
@@ -69,6 +73,8 @@ __all__ = [
     "DisturbanceObserver",
     "FlexibleJointParams",
     "FlexibleJointStateEstimator",
+    "GC_COMPLIANCES",
+    "GcCompliance",
     "GravityCompensator",
     "GravityModel",
     "JointController",
@@ -78,6 +84,8 @@ __all__ = [
     "NoGravity",
     "PendulumGravity",
     "TrackingGain",
+    "joint_static_compliance",
+    "servo_static_stiffness",
     "design_continuous_tracking_lqr",
     "design_discrete_tracking_lqr",
     "discretise",

@@ -1,8 +1,10 @@
 """The four controllers of Kim et al., ICRA 2018, Sec. IV, behind one interface the loop uses.
 
     "pid"         the actuator's own position control: the desired link angle goes straight
-                  to the servo as its goal (the paper's "PID" / default controller).
-    "gc"          gravity compensator only: u = theta_d + ug(theta_d), (8).
+                  to the servo as its goal (the paper's "PID" / default controller; on the
+                  walks the lab's scheme shapes that reference: hil/experiments/walking_scheme.py).
+    "gc"          gravity compensator only: u = theta_d + ug(theta_d), (8) (ug = C tau_g, C the
+                  paper's K^-1 or the whole joint's compliance: controller/gravity.py).
     "gc+lqr"      GC + the discrete derivative-form LQR (21)-(24): u = uc + ug.
     "gc+lqr+dob"  GC + LQR + DOB (9)-(11), composed by (25) in the chosen reading.
 
@@ -99,6 +101,9 @@ class ControllerParams:
     link_velocity_cutoff_hz: None = plain backward difference (default), else a low pass.
     link_velocity_increment: "backward-difference" (default) or "zero" (the lab's); see
         controller/estimation.py.
+    gc_compliance_rad_per_nm: C of the gravity compensator, ug = C tau_g, per joint (scalar =
+        all joints); None (default): the paper's K^-1 (controller/gravity.py: `GcCompliance`,
+        `joint_static_compliance` for the whole joint's).
     """
 
     joints: FlexibleJointParams
@@ -113,6 +118,7 @@ class ControllerParams:
     lqr_coupling: Coupling = "full"
     link_velocity_cutoff_hz: float | None = None
     link_velocity_increment: LinkVelocityIncrement = "backward-difference"
+    gc_compliance_rad_per_nm: np.ndarray | float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.joints, FlexibleJointParams):
@@ -162,6 +168,20 @@ class ControllerParams:
         cutoff = self.link_velocity_cutoff_hz
         if cutoff is not None and not (np.isfinite(cutoff) and cutoff > 0):
             raise ValueError(f"link_velocity_cutoff_hz must be None or > 0, got {cutoff}")
+        if self.gc_compliance_rad_per_nm is not None:
+            compliance = per_joint_array(
+                self.gc_compliance_rad_per_nm, "gc_compliance_rad_per_nm", self.joints.n_joints
+            )
+            if np.any(compliance <= 0):
+                raise ValueError(f"gc_compliance_rad_per_nm must be > 0, got {compliance}")
+            object.__setattr__(self, "gc_compliance_rad_per_nm", compliance)
+
+    @property
+    def compensator_compliance_rad_per_nm(self) -> np.ndarray:
+        """C of (8) per joint: gc_compliance_rad_per_nm, or the paper's K^-1."""
+        if self.gc_compliance_rad_per_nm is None:
+            return 1.0 / self.joints.stiffness_nm_per_rad
+        return np.asarray(self.gc_compliance_rad_per_nm)
 
     @property
     def n_joints(self) -> int:
@@ -509,7 +529,7 @@ def make_controller(
         raise ValueError(
             f"gravity model returns shape {probe.shape} for {n} joints; expected ({n},)"
         )
-    compensator = GravityCompensator(gravity, params.joints.stiffness_nm_per_rad)
+    compensator = GravityCompensator(gravity, params.compensator_compliance_rad_per_nm)
     if kind is ControllerKind.PID:
         return _FeedForwardController(kind.value, n, None)
     if kind is ControllerKind.GC:

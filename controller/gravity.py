@@ -1,12 +1,25 @@
 """Gravity compensator, Kim et al., ICRA 2018, Sec. III-A, (5)-(8).
 
-The compensator is a feed-forward: the gear spring must carry the gravity torque tau_g, so the
-motor is sent ahead of the desired link angle by the spring's static deflection
+The compensator is a feed-forward: the joint must carry the gravity torque tau_g, so the goal
+is sent ahead of the desired link angle by the joint's static deflection under that load
 
-    (8)  ug = K^-1 tau_g.
+    (8)  ug = K^-1 tau_g          the paper: the gear spring's deflection ("gear")
+         ug = C tau_g             C the joint's whole static compliance ("joint", `GcCompliance`)
 
 At rest (1) reads K (theta_m - theta_j) = tau_g(theta_j); with theta_m = theta_d + tau_g(theta_d)/K
-the link sits exactly at theta_d (the link angle theta_j = theta_d solves the statics).
+the link sits exactly at theta_d (the link angle theta_j = theta_d solves the statics). The paper
+can take theta_m = u because its servo model (4) has unit DC gain: a position servo that holds
+any load without lag. A real position servo does not: the H54's cascade (position gain Kpp,
+velocity PI kv, Ti) holds a load tau with the motor short of its goal by tau / (Kpp kv) until
+its velocity integral winds the lag out over Ti (15 s at the stock registers). On the time scale
+of a step the goal must therefore lead the link by
+
+    C tau_g,   C = 1/K + 1/(Kpp kv)   (`joint_static_compliance`)
+
+(derivation: at rest dtheta_m = 0 and, before the integral has grown, the servo's torque
+kv Kpp (u - theta_m) equals the gear's K (theta_m - theta_j) = tau_g). Over times long against
+Ti the integral removes the servo's part and "joint" over-compensates by tau_g / (Kpp kv);
+"gear" is then exact. Which reading runs is `[controller] gc_compliance` (hil).
 
 tau_g is evaluated at the REFERENCE (desired link) angle, as the lab's code does: a pure
 feed-forward, free of encoder noise and of the extra loop (gravity's negative stiffness) that
@@ -23,6 +36,7 @@ horizontal, positive = raising the load; the holding torque is tau_g = m g r cos
 from __future__ import annotations
 
 import abc
+import enum
 
 import numpy as np
 
@@ -83,12 +97,61 @@ class PendulumGravity(GravityModel):
         return self._amplitude_nm * np.cos(link_angle_rad)
 
 
-class GravityCompensator:
-    """(8): ug = K^-1 tau_g(theta_d) [rad], the motor lead that makes the spring hold the load."""
+class GcCompliance(enum.StrEnum):
+    """Which compliance C the gravity compensator offsets, ug = C tau_g (module docstring)."""
 
-    def __init__(self, model: GravityModel, stiffness_nm_per_rad: np.ndarray) -> None:
+    JOINT = "joint"  # the gear in series with the position servo: 1/K + 1/(Kpp kv)
+    GEAR = "gear"  # the paper's literal K^-1 (its servo model (4) holds any load without lag)
+
+
+GC_COMPLIANCES: tuple[str, ...] = tuple(choice.value for choice in GcCompliance)
+
+
+def servo_static_stiffness(
+    position_gain_per_s: np.ndarray | float, velocity_gain_nms_per_rad: np.ndarray | float
+) -> np.ndarray:
+    """Kpp kv [N m/rad]: the torque a position servo with a P position loop over a velocity
+    loop of proportional gain kv returns per radian of lag at rest, before its velocity
+    integral has grown (the H54 at its default registers: 10 1/s x 78.5 N m s/rad = 785)."""
+    gain = np.asarray(position_gain_per_s, dtype=float)
+    velocity = np.asarray(velocity_gain_nms_per_rad, dtype=float)
+    if np.any(~np.isfinite(gain)) or np.any(gain <= 0):
+        raise ValueError(f"position_gain_per_s must be finite and > 0, got {gain}")
+    if np.any(~np.isfinite(velocity)) or np.any(velocity <= 0):
+        raise ValueError(f"velocity_gain_nms_per_rad must be finite and > 0, got {velocity}")
+    return gain * velocity
+
+
+def joint_static_compliance(
+    gear_stiffness_nm_per_rad: np.ndarray | float,
+    position_gain_per_s: np.ndarray | float,
+    velocity_gain_nms_per_rad: np.ndarray | float,
+) -> np.ndarray:
+    """C = 1/K + 1/(Kpp kv) [rad/N m]: the gear spring in series with the servo's static
+    stiffness (`servo_static_stiffness`); per joint. E.g. 1/2000 + 1/785 = 0.00177."""
+    gear = np.asarray(gear_stiffness_nm_per_rad, dtype=float)
+    if np.any(~np.isfinite(gear)) or np.any(gear <= 0):
+        raise ValueError(f"gear_stiffness_nm_per_rad must be finite and > 0, got {gear}")
+    return 1.0 / gear + 1.0 / servo_static_stiffness(position_gain_per_s, velocity_gain_nms_per_rad)
+
+
+class GravityCompensator:
+    """(8): ug = C tau_g(theta_d) [rad], the goal's lead that makes the joint hold the load.
+
+    compliance_rad_per_nm: C per joint; the paper's K^-1 (`1 / stiffness`) or the whole joint's
+    (`joint_static_compliance`).
+    """
+
+    def __init__(self, model: GravityModel, compliance_rad_per_nm: np.ndarray) -> None:
+        compliance = np.array(compliance_rad_per_nm, dtype=float, ndmin=1)
+        if np.any(~np.isfinite(compliance)) or np.any(compliance <= 0):
+            raise ValueError(f"compliance_rad_per_nm must be finite and > 0, got {compliance}")
         self.model = model
-        self._compliance_rad_per_nm = 1.0 / np.asarray(stiffness_nm_per_rad, dtype=float)
+        self._compliance_rad_per_nm = compliance
+
+    @property
+    def compliance_rad_per_nm(self) -> np.ndarray:
+        return self._compliance_rad_per_nm.copy()
 
     def input_rad(self, reference_rad: np.ndarray) -> np.ndarray:
         """ug for the desired link angles (feed-forward, evaluated at the reference)."""

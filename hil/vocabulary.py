@@ -41,7 +41,8 @@ class SafetyCause(enum.StrEnum):
     TORQUE_LOST = "torque_lost"
     BUS_ERROR = "bus_error"
     LINK_STALE = "link_stale"
-    LINK_NOISY = "link_noisy"
+    LINK_NOISY = "link_noisy"  # the link encoder jumps, the motor does not: the sensor
+    OSCILLATION = "oscillation"  # link and motor move back and forth together: the joint
     DEFLECTION = "deflection"
     CURRENT = "current"
     COMMAND_INVALID = "command_invalid"

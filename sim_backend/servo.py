@@ -160,6 +160,44 @@ class H54ServoParams:
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"servo parameter {name} must be a finite rms >= 0, got {value}")
 
+    def cascade_at(
+        self, position_p_gain: int, velocity_p_gain: int, velocity_i_gain: int
+    ) -> ServoCascade:
+        """The cascade's SI gains at these register values (594, 588, 586): each gain scales
+        linearly with its register, the register's default mapping to this object's figure."""
+        position = self.position_gain_per_s * position_p_gain / self.default_position_gain_register
+        velocity = (
+            self.velocity_gain_nms_per_rad * velocity_p_gain / self.default_velocity_p_gain_register
+        )
+        # kv / Ti in N m per rad of integrated speed error, scaled by the I register
+        integral_rate = (
+            self.velocity_gain_nms_per_rad
+            / self.velocity_integral_time_s
+            * velocity_i_gain
+            / self.default_velocity_i_gain_register
+        )
+        return ServoCascade(position, velocity, integral_rate)
+
+
+@dataclass(frozen=True)
+class ServoCascade:
+    """The firmware's position P -> velocity PI gains in SI at some register values."""
+
+    position_gain_per_s: float  # Kpp
+    velocity_gain_nms_per_rad: float  # kv
+    integral_rate_nm_per_rad: float  # kv / Ti
+
+    @property
+    def velocity_integral_time_s(self) -> float:
+        """Ti (inf with the I gain at 0)."""
+        rate = self.integral_rate_nm_per_rad
+        return self.velocity_gain_nms_per_rad / rate if rate > 0 else math.inf
+
+    @property
+    def static_stiffness_nm_per_rad(self) -> float:
+        """Kpp kv: the torque per radian of position lag at rest before the integral grows."""
+        return self.position_gain_per_s * self.velocity_gain_nms_per_rad
+
 
 @dataclass
 class ServoOutput:
@@ -185,18 +223,13 @@ def decode_registers(table: ControlTable, params: H54ServoParams) -> Registers:
     goal_velocity, velocity_limit = item("Goal Velocity"), item("Velocity Limit")
     speed_units = abs(goal_velocity) if 0 < abs(goal_velocity) <= velocity_limit else velocity_limit
     homing_offset = item("Homing Offset")
+    cascade = p.cascade_at(
+        item("Position P Gain"), item("Velocity P Gain"), item("Velocity I Gain")
+    )
     return Registers(
-        position_gain_per_s=p.position_gain_per_s
-        * item("Position P Gain")
-        / p.default_position_gain_register,
-        velocity_gain_nms_per_rad=p.velocity_gain_nms_per_rad
-        * item("Velocity P Gain")
-        / p.default_velocity_p_gain_register,
-        # kv / Ti in N m per rad (torque added per radian of integrated speed error)
-        integral_rate_nm_per_rad=p.velocity_gain_nms_per_rad
-        / p.velocity_integral_time_s
-        * item("Velocity I Gain")
-        / p.default_velocity_i_gain_register,
+        position_gain_per_s=cascade.position_gain_per_s,
+        velocity_gain_nms_per_rad=cascade.velocity_gain_nms_per_rad,
+        integral_rate_nm_per_rad=cascade.integral_rate_nm_per_rad,
         current_cap_a=current_units * AMPERE_PER_CURRENT_UNIT,
         speed_cap_rad_s=speed_units * RAD_S_PER_VELOCITY_UNIT,
         goal_velocity_rad_s=goal_velocity * RAD_S_PER_VELOCITY_UNIT,

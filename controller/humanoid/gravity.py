@@ -5,7 +5,8 @@
 (6)  fr = mu f,  fl = (1 - mu) f,  f = m g = (0, 0, -m * 9.81)  the robot's WEIGHT vector,
 (7)  mu = the CoM's position between the feet (`controller.gravity.support_force_split`):
          0 in left single support, 1 in right single support,
-(8)  ug = K^-1 tau_g  (`controller.gravity.GravityCompensator`).
+(8)  ug = C tau_g, C the paper's K^-1 or the whole joint's compliance
+     (`controller.gravity.GravityCompensator`, `GcCompliance`).
 
 Sign convention (settled against the MuJoCo plant's static spring torques): tau_g is the torque
 the gear spring must carry, tau_j = K (theta_m - theta_j) of (1), in each joint's own axis

@@ -2,7 +2,9 @@
 
 Footstep plan -> timeline and ZMP reference -> CoM by Kajita's ZMP preview control on the
 cart-table -> quintic swing feet -> closed-form leg IK -> `WalkingPattern`, read per tick; plus
-the Kdist schedule by phase. Imports nothing of ours outside `controller`.
+the Kdist schedule by phase, and the lab's walking scheme around the pattern (`lab_terms`: the
+CoM feedback on the pelvis, the position-mode deflection model and support hip-roll
+offsets). Imports nothing of ours outside `controller`.
 """
 
 from controller.walking.center_of_mass import CenterOfMassModel, PinocchioCenterOfMass
@@ -15,6 +17,13 @@ from controller.walking.footsteps import (
     straight_walk_plan,
 )
 from controller.walking.kdist_schedule import KdistSchedule, kdist_gain, kdist_per_joint
+from controller.walking.lab_terms import (
+    LAB_COM_FEEDBACK_GAIN,
+    CenterOfMassFeedback,
+    CenterOfMassMeasurement,
+    DeflectionModel,
+    SupportHipRollOffsets,
+)
 from controller.walking.leg_ik import (
     LegGeometry,
     LegIkError,
@@ -36,6 +45,11 @@ from controller.walking.timeline import PhaseSample, SegmentKind, Support, WalkT
 from controller.walking.zmp_reference import ZmpReferenceParams, ZmpTransition, zmp_reference
 
 __all__ = [
+    "LAB_COM_FEEDBACK_GAIN",
+    "CenterOfMassFeedback",
+    "CenterOfMassMeasurement",
+    "DeflectionModel",
+    "SupportHipRollOffsets",
     "CartTableParams",
     "CartTableTrajectory",
     "CenterOfMassModel",

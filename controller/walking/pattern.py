@@ -310,6 +310,17 @@ class WalkingPattern:
             self.model_com_m[k] = com
             offsets = [offsets[-1], pelvis - target]
 
+    def leg_angles_with_pelvis(self, tick: int, pelvis_position_m: np.ndarray) -> np.ndarray:
+        """The 12 joint angles at `tick` with the pelvis moved to `pelvis_position_m` (its yaw
+        and the feet as planned): closed-form IK, for a pelvis corrected on line (the lab's CoM
+        feedback, `controller.walking.lab_terms`). Raises LegIkError out of the legs' reach."""
+        if self.legs is None:
+            raise ValueError("the pattern has no leg geometry: no joint angles")
+        if not 0 <= tick < self.timeline.n_ticks:
+            raise IndexError(f"tick {tick} outside the pattern's 0..{self.timeline.n_ticks - 1}")
+        rotation = yaw_rotation(self.pelvis_yaw_rad[tick])
+        return self._legs_ik(self.legs, tick, np.asarray(pelvis_position_m, dtype=float), rotation)
+
     def sample(self, tick: int) -> WalkingSample:
         """The pattern at `tick` (0 <= tick < n_ticks)."""
         if not 0 <= tick < self.timeline.n_ticks:

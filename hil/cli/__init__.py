@@ -12,6 +12,7 @@
     hil sweep SPEC [--address ADDR] [--workers N] [--out DIR] [--list] [--json]
     hil bench bus|loop|soak|sweep [--json]
     hil config                 print the sample configuration file
+    hil model [--robot R | --config FILE] [--json]   each joint's static compliance
 
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
 arguments or bad configuration (nothing was sent to any device), 3 torque could not be turned
@@ -56,6 +57,10 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "config":
         sys.stdout.write(default_config_text(args.robot or "testbed"))
         return ExitCode.OK
+    if args.command == "model":
+        from hil.cli.model import cmd_model
+
+        return cmd_model(args)
     if args.command == "emulate":
         from hil.cli.emulate import cmd_emulate
 

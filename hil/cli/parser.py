@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from controller import COMPOSITION_READINGS, CONTROLLER_NAMES
+from controller import COMPOSITION_READINGS, CONTROLLER_NAMES, GC_COMPLIANCES
 from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
 from hil.session.comparison import NAMED_COMPARISONS
@@ -70,6 +70,12 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "--composition",
         choices=list(COMPOSITION_READINGS),
         help="reading of the paper's (25) (default: the config's; see controller/composition.py)",
+    )
+    run.add_argument(
+        "--gc-compliance",
+        choices=list(GC_COMPLIANCES),
+        help="what the gravity compensator (8) offsets: the whole joint's compliance 1/K + "
+        "1/(Kpp kv), or the gear's K^-1 as the paper writes it (default: the config's)",
     )
     run.add_argument(
         "--config", type=Path, help="configuration file (default: the built-in one of --robot)"
@@ -212,6 +218,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bringup(sub)
     config = sub.add_parser("config", help="print a built-in configuration file (a template)")
     _add_robot(config)
+
+    model = sub.add_parser(
+        "model",
+        help="each joint's static compliance: the controller's model and the emulated robot",
+        description="Per joint: the gear stiffness K, the position servo's cascade (Kpp, kv, "
+        "Ti) and its static stiffness Kpp kv, the joint's compliance 1/K + 1/(Kpp kv) and the "
+        "gear's 1/K (the gravity compensator's two readings, [controller] gc_compliance), as "
+        "the configuration's [model] has them and as the emulator builds the robot. Reads "
+        "nothing from any device.",
+    )
+    model.add_argument("--config", type=Path, help="configuration file (default: built-in)")
+    _add_robot(model)
+    model.add_argument("--json", action="store_true", help="one JSON line instead of the table")
     return parser
 
 

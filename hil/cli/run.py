@@ -37,6 +37,10 @@ def _configured(args: argparse.Namespace) -> Config:
         config = config.changed("controller", composition=args.composition, option="--composition")
     if args.kdist is not None:
         config = config.changed("controller", kdist=args.kdist, option="--kdist")
+    if args.gc_compliance is not None:
+        config = config.changed(
+            "controller", gc_compliance=args.gc_compliance, option="--gc-compliance"
+        )
     if args.current_guard is not None:
         config = config.changed(
             "safety", current_guard=args.current_guard == "on", option="--current-guard"

@@ -7,6 +7,7 @@ The same file drives the real robot (`hil run --config FILE`) and its emulation
 options go through the same validation (`Config.changed`).
 """
 
+from hil.config.control_sections import ControllerSection, ModelSection, WalkingSection
 from hil.config.load import (
     BUILT_IN_CONFIGS,
     DEFAULT_CONFIG_NAME,
@@ -21,13 +22,11 @@ from hil.config.load import (
 )
 from hil.config.schema import (
     CanSection,
-    ControllerSection,
     DynamixelSection,
     EmulatorSection,
     ForceSensorSection,
     JointSection,
     LoopSection,
-    ModelSection,
     SafetySection,
 )
 
@@ -45,6 +44,7 @@ __all__ = [
     "LoopSection",
     "ModelSection",
     "SafetySection",
+    "WalkingSection",
     "config_from_record",
     "default_config_text",
     "load_config",

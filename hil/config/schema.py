@@ -14,27 +14,22 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from controller import (
     COMPOSITION_READINGS,
-    LAB_KDIST_RAMP_S,
-    LINK_VELOCITY_INCREMENTS,
-    LQR_DESIGNS,
 )
-from hil.vocabulary import ControllerKind, EmulatorClock, Reaction, SafetyCause
+from hil.config.control_sections import (
+    ControllerSection,
+    ModelSection,
+    WalkingSection,
+)
+from hil.config.section import Section
+from hil.vocabulary import EmulatorClock, Reaction, SafetyCause
 
 Direction = Literal[1, -1]
 # The choices the controller package defines (one definition each, in controller/).
 CompositionName = Annotated[str, Field(json_schema_extra={"enum": list(COMPOSITION_READINGS)})]
-
-
-class Section(BaseModel):
-    """Common rules: strict types, finite numbers, no unknown keys, immutable."""
-
-    model_config = ConfigDict(
-        extra="forbid", strict=True, allow_inf_nan=False, frozen=True, populate_by_name=True
-    )
 
 
 class LoopSection(Section):
@@ -131,96 +126,6 @@ class JointSection(Section):
         return self
 
 
-class JointModelSection(Section):
-    """Per-joint overrides of the model's gear and servo figures."""
-
-    stiffness_nm_per_rad: float | None = Field(None, gt=0)
-    damping_nms_per_rad: float | None = Field(None, ge=0)
-    servo_gain_per_s: float | None = Field(None, gt=0)
-
-
-class ModelSection(Section):
-    """The controller's (nominal) model of the robot: Kim et al. Sec. IV-A.
-
-    robot "single_link": every joint drives its own link swinging in a vertical plane
-    (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
-    robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
-    a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
-    and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
-    off the 200 Hz path; `sm_coupling` "diagonal" (the lab's: one design per joint on Sm's
-    diagonal), "full" (one design on the whole Sm; none exists in double support, where Sm is
-    singular) or "closed-chain" (the whole Sm, designed on the motions the legs and the ground
-    allow: controller/lqr.py; docs/studies/lqr_standing/ says why).
-    Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
-    """
-
-    robot: Literal["single_link", "dyros-jet"] = "single_link"
-    description: str | None = None
-    sm_coupling: Literal["diagonal", "full", "closed-chain"] = "diagonal"
-    gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
-    stiffness_nm_per_rad: float = Field(2000.0, gt=0)
-    damping_nms_per_rad: float = Field(100.0, ge=0)
-    servo_gain_per_s: float = Field(10.0, gt=0)
-    link_inertia_kg_m2: float = Field(0.376, gt=0)
-    gravity_moment_kg_m: float = Field(0.63, ge=0)
-    joint: dict[str, JointModelSection] = Field(default_factory=dict)
-
-    def joint_figure(self, joint: str, key: str) -> float:
-        override = self.joint.get(joint)
-        value = getattr(override, key) if override is not None else None
-        return float(value if value is not None else getattr(self, key))
-
-
-class ControllerSection(Section):
-    """The controller (Kim et al. Sec. III) and its options; controller/controllers.py
-    ControllerParams says what each does. The choices are the controller package's own."""
-
-    name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
-    kdist: float = Field(1.0, ge=0)
-    kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
-    q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
-    q_state: float = Field(1.0, ge=0)
-    r_input: float = Field(1.0, gt=0)
-    dob_cutoff_hz: float | None = Field(None, gt=0)  # the Q filter by its cut-off, or ...
-    dob_filter_pole: float | None = Field(None, ge=0, lt=1)  # ... by its pole; neither: 0.7
-    composition: str = "accumulated"  # the reading of (25)
-    dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
-    discretization: str = "euler"  # the LQR design
-    link_velocity_increment: str = "backward-difference"
-
-    @field_validator("composition")
-    @classmethod
-    def _composition(cls, value: str) -> str:
-        return _one_of(value, COMPOSITION_READINGS)
-
-    @field_validator("discretization")
-    @classmethod
-    def _discretization(cls, value: str) -> str:
-        return _one_of(value, LQR_DESIGNS)
-
-    @field_validator("link_velocity_increment")
-    @classmethod
-    def _increment(cls, value: str) -> str:
-        return _one_of(value, LINK_VELOCITY_INCREMENTS)
-
-    @model_validator(mode="after")
-    def _filter_and_reading(self) -> ControllerSection:
-        if self.dob_cutoff_hz is not None and self.dob_filter_pole is not None:
-            raise ValueError("give dob_cutoff_hz or dob_filter_pole, not both")
-        if self.composition == "accumulated-integral" and self.dob_integral_time_s is None:
-            raise ValueError(
-                "composition 'accumulated-integral' needs dob_integral_time_s (the servo's "
-                "velocity-loop integral time; `hil identify` measures it)"
-            )
-        return self
-
-
-def _one_of(value: str, choices: tuple[str, ...]) -> str:
-    if value not in choices:
-        raise ValueError(f"must be one of {list(choices)}")
-    return value
-
-
 def _reaction(default: Reaction) -> Any:
     return Field(default, strict=False)
 
@@ -228,7 +133,9 @@ def _reaction(default: Reaction) -> Any:
 class SafetySection(Section):
     """What the supervisor watches and what it does about it (README, "Safety").
 
-    link_noise_*: the link-encoder noise watch (hil/safety/watches.py LinkNoiseWatch).
+    link_noise_*: the link-encoder noise watch (hil/safety/link_watches.py LinkNoiseWatch); what
+        it finds is `link_noisy` (the encoder) or `oscillation` (the joint: the motor moves back
+        and forth with the link), each with its reaction `on_link_noisy` / `on_oscillation`.
     overrun_window_s: missed deadlines are counted over this sliding window.
     zero_offset_margin_rad: at rest with torque off, how far the link and motor angles may
         disagree before the zero offsets are called wrong (the start gate refuses the run,
@@ -261,6 +168,7 @@ class SafetySection(Section):
     on_bus_error: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_link_stale: Reaction = _reaction(Reaction.HOLD)
     on_link_noisy: Reaction = _reaction(Reaction.HOLD)
+    on_oscillation: Reaction = _reaction(Reaction.HOLD)
     on_deflection: Reaction = _reaction(Reaction.HOLD)
     on_current: Reaction = _reaction(Reaction.BACK_OFF)
     on_command_invalid: Reaction = _reaction(Reaction.HOLD)
@@ -335,6 +243,7 @@ class ConfigFile(Section):
     joints: list[JointSection] = Field(alias="joint", min_length=1)
     model: ModelSection = Field(default_factory=ModelSection)
     controller: ControllerSection = Field(default_factory=ControllerSection)
+    walking: WalkingSection = Field(default_factory=WalkingSection)
     safety: SafetySection = Field(default_factory=SafetySection)
     emulator: EmulatorSection = Field(default_factory=EmulatorSection)
 

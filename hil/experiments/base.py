@@ -3,11 +3,15 @@
 An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
     reference       the desired link angle of every joint over time (`reference_table` samples
                     it once per run on the loop's grid: no per-tick work)
+    reference_feedback  only for an experiment whose reference follows what the robot
+                    measures (the walks: the lab's CoM feedback on the pelvis): a
+                    `ReferenceFeedback` made for one run, which the loop asks each tick for
+                    the reference from the planned one and that tick's measured link angles.
+                    None (the default): the reference is the table, a function of time alone
     world           what the world does to the robot: an obstacle, pushes. On hardware the user
                     makes it happen; the emulator builds it from the same figures
     phase           a named phase of the experiment at a time; on a humanoid, the support state
                     (`support`) and a Kdist schedule (`kdist_at`) follow from it
-    phase           a named phase of the experiment at a time (a walk schedules Kdist by it)
     goal_offsets    only for an open-loop experiment (identification): the goal itself, as
                     offsets from the goal in force when the experiment starts; the loop sends
                     them instead of stepping the controller (the supervisor still limits them)
@@ -30,11 +34,13 @@ from typing import Any
 
 import numpy as np
 
+from hil.config import Config
 from hil.output.plots import ComparisonRun, WorldMarks
 from hil.output.plots import Push as PushMark
 from hil.output.records import RunEntry
 from hil.output.report import Column, Relation
 from hil.output.rundir import RunData
+from hil.vocabulary import ControllerChoice
 
 
 @dataclass(frozen=True)
@@ -107,6 +113,24 @@ class World:
     floor_objects: tuple[FloorObject, ...] = ()
 
 
+class ReferenceFeedback(abc.ABC):
+    """The reference of one run, corrected tick by tick from what the robot measures.
+
+    Stateful (it may integrate), made fresh for each run by `Experiment.reference_feedback`;
+    the loop calls `reference` once per tick on which the controller steps, in tick order."""
+
+    @abc.abstractmethod
+    def reference(
+        self, time_s: float, planned_rad: np.ndarray, link_angle_rad: np.ndarray
+    ) -> np.ndarray:
+        """The desired link angles [rad] at experiment time `time_s` from the planned ones
+        (the run's reference table) and this tick's measured link angles (every joint)."""
+
+    @abc.abstractmethod
+    def describe(self) -> str:
+        """What corrects the reference, in a line (for the run's events and summary)."""
+
+
 class Experiment(abc.ABC):
     """One experiment; see the module docstring. Subclasses are frozen dataclasses."""
 
@@ -133,6 +157,13 @@ class Experiment(abc.ABC):
         ticks = max(2, int(round(self.duration_s / 0.005)) + 1)
         table = self.reference_table(self.duration_s / (ticks - 1), ticks, n_joints)
         return table.min(axis=0), table.max(axis=0)
+
+    def reference_feedback(
+        self, config: Config, choice: ControllerChoice
+    ) -> ReferenceFeedback | None:
+        """A fresh `ReferenceFeedback` for one run of `choice` on `config`'s robot, or None (the
+        default): the reference is the table alone."""
+        return None
 
     def phase(self, time_s: float) -> str:
         """The experiment's phase at `time_s` (a single phase unless an experiment has more)."""

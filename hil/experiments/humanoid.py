@@ -39,6 +39,7 @@ import numpy as np
 
 from drivers.joint_bus import wrench_keys
 from hil.experiments.base import Experiment, PelvisPush, World
+from hil.experiments.legs import leg_model, pelvis_rotation
 from hil.output.plots import (
     ComparisonRun,
     WorldMarks,
@@ -61,14 +62,6 @@ RECOVERED_M = 0.01
 FEET = ("left_foot", "right_foot")
 
 
-@functools.lru_cache(maxsize=1)
-def _leg_model():
-    from controller.humanoid import LegModel
-    from hil.config import load_config, robot_description_text
-
-    return LegModel(robot_description_text(load_config(robot="dyros-jet")))
-
-
 @dataclass(frozen=True)
 class StandingKinematics:
     """Per tick, from the measured link angles and the foot sensors: ZMP, CoM, pelvis tilt."""
@@ -82,7 +75,7 @@ class StandingKinematics:
     def of(cls, run: RunData) -> StandingKinematics:
         from controller.humanoid import FootWrench, NoSupportError, zmp_from_foot_wrenches
 
-        model = _leg_model()
+        model = leg_model()
         links = np.column_stack(run.per_joint("link_angle_rad"))
         wrench = {
             foot: np.column_stack([run.columns[k] for k in wrench_keys(foot)]) for foot in FEET
@@ -95,7 +88,7 @@ class StandingKinematics:
             if not np.isfinite(links[k]).all():
                 continue
             q = model.standing_configuration(links[k], side=0)
-            rotation = _rotation(q)
+            rotation = pelvis_rotation(q)
             tilt[k] = math.acos(max(-1.0, min(1.0, rotation[2, 2])))
             feet = []
             for side, foot in enumerate(FEET):
@@ -108,12 +101,6 @@ class StandingKinematics:
                 zmp[k] = zmp_from_foot_wrenches(feet)
         polygon = _support_polygon(model, links[0])
         return cls(zmp, vertical, tilt, polygon)
-
-
-def _rotation(q: np.ndarray) -> np.ndarray:
-    import pinocchio as pin
-
-    return pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
 
 
 def _support_polygon(model: Any, links: np.ndarray) -> tuple[float, float, float, float]:
@@ -190,7 +177,7 @@ class HumanoidStandingExperiment(Experiment):
 
     @functools.cached_property
     def _desired(self) -> tuple[np.ndarray, float]:
-        model = _leg_model()
+        model = leg_model()
         q = model.standing_configuration(np.asarray(self.posture_rad), side=0)
         return model.centre_of_mass(q)[:2], model.total_mass_kg * 9.81
 

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from hil.experiments.legs import anchor_feet, leg_model, placed_configuration
+from hil.experiments.walking_kinematics import WalkingKinematics, stopped_at_s
 from hil.output.plots import ComparisonRun, comparison_title, save_figure
 
 FOOT_COLOUR = "#9b59b6"  # the paper's purple foot placements
@@ -75,8 +77,6 @@ def lateral_zmp_figure(
     """Fig. 7: per controller, the desired and the measured lateral ZMP, with the feet."""
     from matplotlib.figure import Figure
 
-    from hil.experiments.walking import WalkingKinematics
-
     ordered = sorted(runs, key=lambda r: r.choice.kind.value)
     figure = Figure(figsize=(9.0, 2.1 * len(ordered) + 1.0), layout="constrained")
     axes = np.atleast_1d(figure.subplots(len(ordered), 1, sharex=True, sharey=True))
@@ -90,7 +90,7 @@ def lateral_zmp_figure(
         ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label="measured", **style)
         ax.set_ylim(*ZMP_AXIS_M)
         _mark_fall(ax, entry, kinematics)
-        ax.set_ylabel(f"{entry.label}\nZMP y [m]")
+        ax.set_ylabel(f"{walking_label(entry)}\nZMP y [m]", fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.set_xlim(0.0, pattern.time_s[-1])
         ax.legend(fontsize=7, loc="upper right")
@@ -103,18 +103,27 @@ def lateral_zmp_figure(
     return save_figure(figure, path)
 
 
+def walking_label(entry: ComparisonRun) -> str:
+    """The run's controller as the walks name it: `pid` with the lab's position-mode terms is
+    the paper's default controller (the actuator's own position control with the lab's
+    walking scheme, hil/experiments/walking_scheme.py); the scheme's terms come from the run's
+    summary.json."""
+    scheme = str(entry.run.summary.get("reference_feedback") or "")
+    if entry.choice.kind.value == "pid" and "deflection model" in scheme:
+        return "default (pid + the lab's scheme)"
+    return entry.label
+
+
 def _paper_order(runs: Sequence[ComparisonRun]) -> list[ComparisonRun]:
     order = {"pid": 0, "gc": 1, "gc+lqr": 2, "gc+lqr+dob": 3}
     return sorted(runs, key=lambda r: order.get(r.choice.kind.value, 9))
 
 
-def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: Any) -> None:
+def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: WalkingKinematics) -> None:
     """The fall (red) and the safety stop (black) on a time axis."""
-    from hil.experiments.walking import _stopped_at_s
-
     for when, what, colour in (
         (kinematics.fall_time_s(), "fell", "r"),
-        (_stopped_at_s(entry.run), "safety stop", "k"),
+        (stopped_at_s(entry.run), "safety stop", "k"),
     ):
         if when is not None:
             ax.axvline(when, color=colour, lw=0.8, ls=":")
@@ -122,10 +131,8 @@ def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: Any) -> None:
 
 
 def _row_label(entry: ComparisonRun, kinematics: Any) -> str:
-    from hil.experiments.walking import _stopped_at_s
-
-    label = entry.label.replace(" (", "\n(")
-    fell, stopped = kinematics.fall_time_s(), _stopped_at_s(entry.run)
+    label = walking_label(entry).replace(" (", "\n(")
+    fell, stopped = kinematics.fall_time_s(), stopped_at_s(entry.run)
     if stopped is not None:
         label += f"\nstop {stopped:.2f} s"
     if fell is not None:
@@ -163,9 +170,7 @@ def _draw_frame(
     angles logged nearest `time_s`, or "stopped" when the log has none."""
     from matplotlib.patches import Rectangle
 
-    from hil.experiments.walking import _leg_model, _placed_configuration
-
-    model = _leg_model()
+    model = leg_model()
     pattern = experiment.pattern
     half_length = model.sole_boxes[0].size_m[0] / 2.0
     for box in experiment.world.floor_objects:
@@ -181,7 +186,7 @@ def _draw_frame(
     rows = np.flatnonzero(np.abs(kinematics.time_s - time_s) < 0.5 * kinematics.period_s)
     if rows.size and np.isfinite(kinematics.links_rad[rows[0]]).all():
         tick = min(pattern.n_ticks - 1, int(round(time_s / pattern.dt_s)))
-        _placed_configuration(
+        placed_configuration(
             model, kinematics.links_rad[rows[0]], int(anchors[tick]), pattern, tick
         )
         for side in (1, 0):  # the left leg on top
@@ -209,11 +214,9 @@ def step_sequence_figure(
     """Fig. 8: stick figures (side view) of every controller's legs around the object step."""
     from matplotlib.figure import Figure
 
-    from hil.experiments.walking import WalkingKinematics, _anchor_feet
-
     ordered = _paper_order(runs)
     pattern = experiment.pattern
-    anchors = _anchor_feet(pattern)
+    anchors = anchor_feet(pattern)
     times = _frame_times(experiment)
     figure = Figure(figsize=(1.5 * N_FRAMES + 1.0, 2.3 * len(ordered) + 2.6), layout="constrained")
     grid = figure.add_gridspec(len(ordered) + 1, N_FRAMES, height_ratios=[1] * len(ordered) + [1.1])
@@ -224,7 +227,7 @@ def step_sequence_figure(
         kinematics = WalkingKinematics.of(entry.run, experiment)
         style = entry.style.kwargs()
         style["linestyle"] = "-"
-        zmp_ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label=entry.label, **style)
+        zmp_ax.plot(kinematics.time_s, kinematics.zmp_m[:, 1], label=walking_label(entry), **style)
         for column, time_s in enumerate(times):
             ax = figure.add_subplot(grid[row, column])
             _draw_frame(ax, experiment, kinematics, float(time_s), anchors)

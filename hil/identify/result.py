@@ -187,7 +187,8 @@ def render_config_fragment(result: IdentificationResult, joint_name: str = "") -
     """TOML the user pastes: the controller's model of the joint, and the emulator's figures.
 
     The first table is the joint's model in hil's configuration (`[model.joint.NAME]`, or
-    `[model]` without a joint name: the figures of every joint); the second an [emulator]
+    `[model]` without a joint name: the figures of every joint): K, D, Kp of (1), (4) and the
+    servo's cascade (position gain, velocity gain, integral time), the second an [emulator]
     table whose plant/servo overrides make the emulated testbed behave like the identified
     joint (merge its keys into an existing [emulator] table: TOML allows a table once).
     """
@@ -207,6 +208,10 @@ def render_config_fragment(result: IdentificationResult, joint_name: str = "") -
         f"stiffness_nm_per_rad = {_fmt(stiffness.value)}  # {_interval_comment(stiffness)}",
         f"damping_nms_per_rad = {_fmt(damping.value)}  # {_interval_comment(damping)}",
         f"servo_gain_per_s = {_fmt(servo_kp.value)}  # (4): {_interval_comment(servo_kp)}",
+        "# the servo's cascade (the gravity compensator's joint compliance 1/K + 1/(Kpp kv)):",
+        f"position_gain_per_s = {_fmt(position.value)}",
+        f"velocity_gain_nms_per_rad = {_fmt(velocity.value)}",
+        f"velocity_integral_time_s = {_fmt(integral.value)}",
         "",
         "# The emulator made to match (overrides of sim_backend's plant and servo figures):",
         "[emulator]",

@@ -7,8 +7,10 @@ import numpy as np
 from controller import (
     ControllerParams,
     FlexibleJointParams,
+    GcCompliance,
     JointController,
     LqrWeights,
+    joint_static_compliance,
     make_controller,
 )
 from hil.config import Config, ConfigError
@@ -16,18 +18,32 @@ from hil.loop.robot_model import RobotModel, robot_model
 from hil.vocabulary import ControllerChoice
 
 
+def model_figures(config: Config, key: str) -> np.ndarray:
+    """One [model] figure per joint (with its per-joint overrides), in the joints' order."""
+    return np.array([config.model.joint_figure(name, key) for name in config.joint_names])
+
+
 def joint_params(config: Config) -> FlexibleJointParams:
     """K, D, Kp per joint from [model] (with its per-joint overrides)."""
-    model = config.model
-    names = config.joint_names
-
-    def figures(key: str) -> np.ndarray:
-        return np.array([model.joint_figure(name, key) for name in names])
-
     return FlexibleJointParams(
-        stiffness_nm_per_rad=figures("stiffness_nm_per_rad"),
-        damping_nms_per_rad=figures("damping_nms_per_rad"),
-        servo_gain_per_s=figures("servo_gain_per_s"),
+        stiffness_nm_per_rad=model_figures(config, "stiffness_nm_per_rad"),
+        damping_nms_per_rad=model_figures(config, "damping_nms_per_rad"),
+        servo_gain_per_s=model_figures(config, "servo_gain_per_s"),
+    )
+
+
+def gc_compliance(config: Config, reading: GcCompliance | None = None) -> np.ndarray:
+    """C of the gravity compensator (8) per joint [rad/N m] in `reading` (default: the
+    configuration's `[controller] gc_compliance`): "joint" 1/K + 1/(Kpp kv) from [model],
+    "gear" the paper's 1/K."""
+    reading = GcCompliance(reading or config.controller.gc_compliance)
+    stiffness = model_figures(config, "stiffness_nm_per_rad")
+    if reading is GcCompliance.GEAR:
+        return 1.0 / stiffness
+    return joint_static_compliance(
+        stiffness,
+        model_figures(config, "position_gain_per_s"),
+        model_figures(config, "velocity_gain_nms_per_rad"),
     )
 
 
@@ -70,6 +86,7 @@ def build_controller(
         discretisation=section.discretization,  # type: ignore[arg-type]
         link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
         lqr_coupling=robot.lqr_coupling,  # type: ignore[arg-type]
+        gc_compliance_rad_per_nm=gc_compliance(config),
     )
     sm = robot.sm(start, support)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

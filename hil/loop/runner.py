@@ -8,7 +8,9 @@ Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends
     HOLD        hold the present position
     HOMING      the slow ramp, followed by the actuator's own position servo
     EXPERIMENT  the controller along the experiment's reference (it starts bumplessly from the
-                goal in force; it is not stepped while the supervisor holds a safe state), or,
+                goal in force; it is not stepped while the supervisor holds a safe state; an
+                experiment with a `ReferenceFeedback` corrects the reference from the tick's
+                measured link angles first, and the log records the corrected one), or,
                 for an open-loop experiment (identification), the goal in force at its start
                 plus the experiment's own goal offsets, with no controller
     STOP        hold the last goal; then the configured exit torque state
@@ -38,9 +40,10 @@ import can
 import numpy as np
 
 from controller import JointController
-from drivers.joint_bus import BusError, JointBus, JointSample, wrench_keys
+from drivers.joint_bus import BusError, JointBus, JointDevices, JointSample, wrench_keys
 from hil.config import Config
 from hil.experiments import Experiment
+from hil.experiments.base import ReferenceFeedback
 from hil.loop.clock import LoopClock, Tick
 from hil.loop.controller_factory import build_controller, joint_params
 from hil.loop.gain_scheduler import GainScheduler
@@ -77,6 +80,19 @@ class _TorqueState:
     answered_before: bool = True
 
 
+def _supervisor(config: Config, devices: JointDevices, period_s: float) -> Supervisor:
+    """The safety supervisor of the configured joints (limits, stiffness, `[safety]`)."""
+    return Supervisor(
+        config.safety,
+        config.joint_names,
+        devices,
+        np.array([j.min_angle_rad for j in config.joints]),
+        np.array([j.max_angle_rad for j in config.joints]),
+        period_s,
+        joint_params(config).stiffness_nm_per_rad,
+    )
+
+
 class Loop:
     """One run; `run()` returns its result. See the module docstring."""
 
@@ -99,15 +115,7 @@ class Loop:
         n = len(config.joints)
         self.n = n
         self.devices = bus.devices()
-        self.supervisor = Supervisor(
-            config.safety,
-            config.joint_names,
-            self.devices,
-            np.array([j.min_angle_rad for j in config.joints]),
-            np.array([j.max_angle_rad for j in config.joints]),
-            self.period,
-            joint_params(config).stiffness_nm_per_rad,
-        )
+        self.supervisor = _supervisor(config, self.devices, self.period)
         low, high = self.experiment.reference_range(n)
         self.supervisor.check_reference(low, high)
         self.robot = robot_model(config)
@@ -133,6 +141,7 @@ class Loop:
         self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
         self.sensor_columns = sensor_columns(config)
         self._open_loop = self._open_loop_offsets(config.safety.max_goal_rate_rad_s)
+        self.feedback = None if self._open_loop is not None else self._reference_feedback()
         self._goal_base: np.ndarray | None = None  # an open-loop experiment's goals start here
         self.log = RunLog(
             request.out_dir,
@@ -226,8 +235,7 @@ class Loop:
         self._watch(tick, sample)
         if k >= self._reference_filled:  # (the clock skipped more ticks than the ring holds)
             self._reference_ahead(k - 1)
-        reference = self.references[k % len(self.references)]
-        proposed = self._propose(k, sample, reference)
+        proposed, reference = self._propose(k, sample, self.references[k % len(self.references)])
         goal = self.supervisor.command(proposed, sample) if self.torque.on else None
         phase = self.timeline.phase(k)
         if proposed is not None and phase is Phase.EXPERIMENT and self._controller_started:
@@ -243,6 +251,10 @@ class Loop:
         on_progress = self.request.on_progress
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
             on_progress(tick.time_s, self.timeline.end * self.period)
+
+    def _reference_feedback(self) -> ReferenceFeedback | None:
+        """The experiment's correction of its reference from the measured sample, if any."""
+        return self.experiment.reference_feedback(self.config, self.request.choice)
 
     def _open_loop_offsets(self, max_goal_rate_rad_s: float) -> np.ndarray | None:
         """An open-loop experiment's goal offsets (None: closed loop), refused before anything
@@ -296,6 +308,8 @@ class Loop:
         self.references = np.empty((ahead, self.n))
         self._reference_filled = 0
         self._reference_ahead(-1)
+        if self.feedback is not None:
+            self.log.event(0.0, "reference_feedback", self.feedback.describe())
         return sample
 
     def _reference_ahead(self, k: int) -> None:
@@ -345,22 +359,28 @@ class Loop:
                 torque.retry_tick = k + DISABLE_RETRY_TICKS
         torque.answered_before = answered
 
-    def _propose(self, k: int, sample: JointSample, reference: np.ndarray) -> np.ndarray | None:
-        """The goal this phase proposes (None: the controller cannot step this tick)."""
+    def _propose(
+        self, k: int, sample: JointSample, reference: np.ndarray
+    ) -> tuple[np.ndarray | None, np.ndarray]:
+        """The goal this phase proposes (None: the controller cannot step this tick), and the
+        reference it followed (the table's, or as the experiment's feedback corrected it)."""
         link = np.where(sample.link_valid, sample.link_angle_rad, self._last_link)
         self._last_link = link
         phase = self.timeline.phase(k)
         if phase is Phase.STOP:
-            return self._last_goal
+            return self._last_goal, reference
         if phase is Phase.HOLD:
-            return self._hold_goal
+            return self._hold_goal, reference
         if phase is Phase.HOMING:
-            return reference  # the actuator's own servo follows the ramp
+            return reference, reference  # the actuator's own servo follows the ramp
         if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
-            return None
+            return None, reference
         if self._open_loop is not None:
-            return self._open_loop_goal(k)
+            return self._open_loop_goal(k), reference
         self._schedule(k, link)
+        if self.feedback is not None:
+            time_s = self.timeline.experiment_time_s(k)
+            reference = self.feedback.reference(time_s, reference, link)
         controller = self.controller
         if not self._controller_started:  # bumpless: from the goal the servo is driven with
             controller.reset(sample.motor_angle_rad, link, reference, self._last_goal)
@@ -368,7 +388,7 @@ class Loop:
         elif k - self._last_step_tick > 1:  # ticks without a step: do not read them as motion
             controller.resync(sample.motor_angle_rad, link)
         self._last_step_tick = k
-        return controller.step(sample.motor_angle_rad, link, reference)
+        return controller.step(sample.motor_angle_rad, link, reference), reference
 
     def _schedule(self, k: int, link: np.ndarray) -> None:
         """What the experiment's phase sets: the support state (gravity compensator, Sm and the
@@ -553,6 +573,7 @@ class Loop:
             "experiment_start_s": self.timeline.experiment_start_s,
             "current_limit_a": self.current_limits.tolist(),
             "gain_schedule": self.scheduler.schedule.record() if self.scheduler else None,
+            "reference_feedback": self.feedback.describe() if self.feedback else None,
             "metrics": metrics,
         }
         self.log.write_summary(summary)

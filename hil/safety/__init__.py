@@ -1,4 +1,4 @@
-"""The safety supervisor and its watches (see supervisor.py and watches.py)."""
+"""The safety supervisor and its watches (see supervisor.py, watches.py and link_watches.py)."""
 
 from hil.safety.supervisor import (
     MAX_NOTICES_PER_KIND,
@@ -6,7 +6,8 @@ from hil.safety.supervisor import (
     SafeState,
     Supervisor,
 )
-from hil.safety.watches import Reporter, Watch, WatchContext, Watches
+from hil.safety.watch_set import Watches
+from hil.safety.watches import Reporter, Watch, WatchContext
 
 __all__ = [
     "MAX_NOTICES_PER_KIND",

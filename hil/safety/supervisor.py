@@ -1,7 +1,8 @@
 """The safety supervisor: between the controller and the bus, every tick.
 
 What it does each tick, in this order:
-1. run the watches on the sample (`observe`; hil/safety/watches.py says what each watches);
+1. run the watches on the sample (`observe`; hil/safety/watches.py and link_watches.py say
+   what each watches);
 2. when a watch trips, latch the safe state configured for that cause (`[safety] on_<cause>`)
    and record it with the joint, the tick, the time and the figures (`events`); each cause is
    reported once per joint (once per fault code for actuator faults);
@@ -33,7 +34,8 @@ import numpy as np
 
 from drivers.joint_bus import JointDevices, JointSample
 from hil.config import SafetySection
-from hil.safety.watches import WatchContext, Watches
+from hil.safety.watch_set import Watches
+from hil.safety.watches import WatchContext
 from hil.vocabulary import (
     NoticeKind,
     Reaction,
@@ -240,6 +242,7 @@ class Supervisor:
                 return None
             goal = self._hold_goal
         self._last_goal = goal
+        self.watches.link_noise.note_goal(goal)
         return goal.copy()
 
     def _limit(self, goal: np.ndarray) -> np.ndarray:

@@ -4,7 +4,8 @@ Every watch looks at each tick's sample (`observe`) and reports through a `Repor
 (a cause that latches a safe state) or a `notice` (worth a line in the log, changes nothing).
 A watch keeps its own per-joint memory; it decides from the samples and the tick count, never
 from the wall clock, so a lock-step run is deterministic. The supervisor runs them in the order
-of `default_watches` (for one joint: actuator, link, deflection - the order of the events).
+of `Watches` (hil/safety/watch_set.py; for one joint: actuator, link, deflection - the order of
+the events). The link encoder's watches are in hil/safety/link_watches.py.
 
     BusErrorWatch       no valid reply from an actuator for `bus_error_ticks` ticks in a row
                         (timeouts, CRC errors, a missing ID); shorter streaks are notices
@@ -13,10 +14,13 @@ of `default_watches` (for one joint: actuator, link, deflection - the order of t
                         found off while the loop expects it on
     CurrentGuardWatch   |current| held near the active current limit for too long (the software
                         overload guard, switchable)
-    LinkStaleWatch      no fresh link value for `link_stale_ticks` ticks (a dead node), or a
-                        value frozen that long while the motor moved more than half the
-                        deflection bound (a hung counter)
-    LinkNoiseWatch      the link reading jumps back and forth (sign-alternating 2nd difference)
+    LinkStaleWatch      (link_watches.py) no fresh link value for `link_stale_ticks` ticks (a
+                        dead node), or a value frozen that long while the motor moved more than
+                        half the deflection bound (a hung counter)
+    LinkNoiseWatch      (link_watches.py) the link reading jumps back and forth
+                        (sign-alternating 2nd difference): a noisy encoder (`link_noisy`), or,
+                        with the motor moving back and forth too, an oscillating joint
+                        (`oscillation`)
     DeflectionWatch     |theta_j - theta_m| beyond `max_deflection_rad`
     OverrunWatch        more than `overrun_limit` missed deadlines within `overrun_window_s`
                         (fed by the loop, not by samples)
@@ -26,8 +30,6 @@ from __future__ import annotations
 
 import abc
 import collections
-import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -182,164 +184,6 @@ class CurrentGuardWatch(Watch):
                 )
 
 
-@dataclass
-class _LinkHistory:
-    """What the link watches remember of one joint's readings between ticks."""
-
-    last_rad: float = math.nan
-    before_rad: float = math.nan
-    last_sampled_s: float = math.nan
-    sampled_before_s: float = math.nan
-
-    def forget(self) -> None:
-        """A gap in the readings: differences across it would mean nothing."""
-        self.last_rad = math.nan
-        self.before_rad = math.nan
-
-    def push(self, link: float, sampled_s: float) -> None:
-        self.before_rad, self.last_rad = self.last_rad, link
-        self.sampled_before_s, self.last_sampled_s = self.last_sampled_s, sampled_s
-
-
-class LinkStaleWatch(Watch):
-    def __init__(self, context: WatchContext, history: Sequence[_LinkHistory]) -> None:
-        super().__init__(context)
-        n = context.n_joints
-        self.history = history
-        self.bad_ticks = np.zeros(n, dtype=int)
-        self.bad_total = np.zeros(n, dtype=int)
-        self.frozen_ticks = np.zeros(n, dtype=int)
-        self.motor_at_freeze_rad = np.full(n, math.nan)
-
-    def observe(self, sample: JointSample, report: Reporter) -> None:
-        for i in range(self.context.n_joints):
-            if sample.link_valid[i]:
-                self._fresh(sample, report, i)
-            else:
-                self._missing(sample, report, i)
-
-    def _missing(self, sample: JointSample, report: Reporter, i: int) -> None:
-        s = self.context.safety
-        self.bad_ticks[i] += 1
-        self.bad_total[i] += 1
-        self.history[i].forget()
-        self.frozen_ticks[i] = 0
-        if self.bad_ticks[i] >= s.link_stale_ticks:
-            report.trip(
-                SafetyCause.LINK_STALE,
-                i,
-                f"{self.context.devices[i].link_sensor}: no fresh position for "
-                f"{self.bad_ticks[i]} ticks (last one {sample.link_age_s[i]:.3f} s ago)",
-            )
-
-    def _fresh(self, sample: JointSample, report: Reporter, i: int) -> None:
-        s = self.context.safety
-        sensor = self.context.devices[i].link_sensor
-        if self.bad_ticks[i]:
-            streak = (
-                f"{sensor}: {self.bad_ticks[i]} tick(s) without a fresh position, then it "
-                "answered again"
-            )
-            if self.bad_ticks[i] < s.link_stale_ticks:
-                message = f"{streak}: tolerated (link_stale_ticks = {s.link_stale_ticks})"
-                report.notice(NoticeKind.LINK_GLITCH, i, message)
-            else:
-                report.notice(
-                    NoticeKind.LINK_RECOVERED, i, f"{streak}; the safe state stays latched"
-                )
-        self.bad_ticks[i] = 0
-        link = float(sample.link_angle_rad[i])
-        motor = float(sample.motor_angle_rad[i])
-        if link != self.history[i].last_rad:
-            self.frozen_ticks[i] = 0
-            return
-        if self.frozen_ticks[i] == 0:
-            self.motor_at_freeze_rad[i] = motor
-        self.frozen_ticks[i] += 1
-        # A frozen reading while the motor turns far: a hung counter. A link blocked by an
-        # obstacle also reads constant while the motor winds the gear up, but the windup stops
-        # where the gear torque K x windup meets the actuator's torque limit (48 N m / 2000
-        # N m/rad = 0.024 rad on the testbed), below half the deflection bound (0.03 rad); and
-        # beyond the bound the deflection watch fires anyway.
-        moved = abs(motor - self.motor_at_freeze_rad[i]) if sample.motor_valid[i] else 0.0
-        if self.frozen_ticks[i] >= s.link_stale_ticks and moved > 0.5 * s.max_deflection_rad:
-            report.trip(
-                SafetyCause.LINK_STALE,
-                i,
-                f"{sensor}: position frozen for {self.frozen_ticks[i]} ticks while the motor "
-                f"moved {moved:.4f} rad",
-            )
-
-
-class LinkNoiseWatch(Watch):
-    """Count sign-alternating jumps of the link reading's second difference.
-
-    A physical link angle sampled at 200 Hz has a smooth second difference (its sign changes only
-    where the acceleration does, a few times per oscillation); white noise makes it alternate. A
-    tick counts as a noise jump when |second difference| > `link_noise_jump_rad` and its sign is
-    opposite to the previous tick's; the watch fires when at least `link_noise_fraction` of the
-    last `link_noise_window_ticks` ticks are noise jumps. Measured on the emulated testbed
-    (RLC2IC, 983,040 counts/rev, 6.4e-6 rad per count): the contact and impact experiments with
-    pid and gc+lqr+dob reach at most 2 of 20 (the 80 N impact included); the emulator's
-    noisy_encoder fault (50 counts rms) 18 of 20. With the defaults, noise of about 1e-4 rad
-    (16 counts) rms or more trips; quantisation (+-1 count) never counts.
-
-    The second difference is taken over the readings' own timestamps (the SYNC instants), scaled
-    to the nominal period: (slope now - slope before) x period. On the wall clock the sampling
-    instants jitter by a fraction of a millisecond; a plain second difference of a link moving at
-    1 rad/s would show that jitter as alternating jumps of ~1e-4 rad. Without usable timestamps
-    (not increasing), the plain second difference is used.
-    """
-
-    def __init__(self, context: WatchContext, history: Sequence[_LinkHistory]) -> None:
-        super().__init__(context)
-        n = context.n_joints
-        s = context.safety
-        self.history = history
-        self.jumps = np.zeros((n, s.link_noise_window_ticks), dtype=bool)
-        self.jump_count = np.zeros(n, dtype=int)
-        self.index = np.zeros(n, dtype=int)
-        self.last_second_rad = np.zeros(n)
-        self.trip_count = math.ceil(s.link_noise_fraction * s.link_noise_window_ticks)
-
-    def observe(self, sample: JointSample, report: Reporter) -> None:
-        for i in range(self.context.n_joints):
-            history = self.history[i]
-            if not sample.link_valid[i]:
-                self.last_second_rad[i] = 0.0
-                continue
-            link = float(sample.link_angle_rad[i])
-            if math.isfinite(history.before_rad):
-                self._count(i, self._second_difference(history, link, sample), report)
-            history.push(link, float(sample.timestamp_s))
-
-    def _second_difference(self, history: _LinkHistory, link: float, sample: JointSample) -> float:
-        step_now = float(sample.timestamp_s) - history.last_sampled_s
-        step_before = history.last_sampled_s - history.sampled_before_s
-        if step_now > 0 and step_before > 0:
-            slope_now = (link - history.last_rad) / step_now
-            slope_before = (history.last_rad - history.before_rad) / step_before
-            return (slope_now - slope_before) * self.context.period_s
-        return link - 2.0 * history.last_rad + history.before_rad
-
-    def _count(self, i: int, second: float, report: Reporter) -> None:
-        s = self.context.safety
-        jump = abs(second) > s.link_noise_jump_rad and second * self.last_second_rad[i] < 0
-        slot = self.index[i]
-        self.jump_count[i] += int(jump) - int(self.jumps[i, slot])
-        self.jumps[i, slot] = jump
-        self.index[i] = (slot + 1) % self.jumps.shape[1]
-        self.last_second_rad[i] = second
-        if self.jump_count[i] >= self.trip_count:
-            report.trip(
-                SafetyCause.LINK_NOISY,
-                i,
-                f"{self.context.devices[i].link_sensor}: {self.jump_count[i]} of the last "
-                f"{self.jumps.shape[1]} readings jumped back and forth by more than "
-                f"{s.link_noise_jump_rad:g} rad (second difference): a noisy sensor",
-            )
-
-
 class DeflectionWatch(Watch):
     def observe(self, sample: JointSample, report: Reporter) -> None:
         bound = self.context.safety.max_deflection_rad
@@ -387,40 +231,3 @@ class OverrunWatch:
                 f"{self._recent_count} missed deadlines within {s.overrun_window_s:g} s "
                 f"(limit {s.overrun_limit}); this one skipped {skipped} tick(s)",
             )
-
-
-@dataclass
-class Watches:
-    """The sample watches in their order, plus the two the supervisor talks to directly."""
-
-    bus: BusErrorWatch
-    actuator: ActuatorFaultWatch
-    current: CurrentGuardWatch
-    link_stale: LinkStaleWatch
-    link_noise: LinkNoiseWatch
-    deflection: DeflectionWatch
-    overrun: OverrunWatch
-
-    @classmethod
-    def default(cls, context: WatchContext) -> Watches:
-        history = [_LinkHistory() for _ in range(context.n_joints)]
-        return cls(
-            bus=BusErrorWatch(context),
-            actuator=ActuatorFaultWatch(context),
-            current=CurrentGuardWatch(context),
-            link_stale=LinkStaleWatch(context, history),
-            link_noise=LinkNoiseWatch(context, history),
-            deflection=DeflectionWatch(context),
-            overrun=OverrunWatch(context),
-        )
-
-    @property
-    def in_order(self) -> tuple[Watch, ...]:
-        return (
-            self.bus,
-            self.actuator,
-            self.current,
-            self.link_stale,
-            self.link_noise,
-            self.deflection,
-        )

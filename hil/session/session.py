@@ -99,13 +99,14 @@ class Session:
             if robot_of(self.config) == "dyros-jet"
             else ("emulated testbed")
         )
+        gc = f"GC compliance: {self.config.controller.gc_compliance}"
         if self.setup is Setup.EMBEDDED:
-            return f"{emulated}, " + ("real time" if self.realtime else "lock-step")
+            return f"{emulated}, " + ("real time" if self.realtime else "lock-step") + f"; {gc}"
         if self.setup is Setup.IN_PROCESS:
-            return f"{emulated} in process, lock-step"
+            return f"{emulated} in process, lock-step; {gc}"
         if self.setup is Setup.ATTACHED:
-            return f"attached emulator {(self.attach or {}).get('dynamixel_port')}"
-        return "hardware " + ", ".join(d.port for d in self.config.dynamixel)
+            return f"attached emulator {(self.attach or {}).get('dynamixel_port')}; {gc}"
+        return "hardware " + ", ".join(d.port for d in self.config.dynamixel) + f"; {gc}"
 
     def say(self, text: str) -> None:
         if self.quiet:

@@ -384,6 +384,9 @@ def config_at(base: Config, targets: dict[str, Value], model: ModelFollows) -> C
             stiffness_nm_per_rad=plant.gear_stiffness_nm_per_rad,
             damping_nms_per_rad=plant.gear_damping_nms_per_rad,
             servo_gain_per_s=servo.position_gain_per_s,
+            # the cascade's Kpp follows servo_gain_per_s (and its per-joint overrides)
+            velocity_gain_nms_per_rad=servo.velocity_gain_nms_per_rad,
+            velocity_integral_time_s=servo.velocity_integral_time_s,
             link_inertia_kg_m2=plant.link_inertia_kg_m2,
             gravity_moment_kg_m=plant.gravity_moment_kg_m,
         )

@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,7 @@ from hil.vocabulary import EmulatorClock
 from hil.wiring.hardware import encoder_counts_per_rev
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import FaultEvent, PelvisPushEvent, PushEvent, Scenario
-from sim_backend.servo import H54ServoParams
+from sim_backend.servo import H54ServoParams, ServoCascade
 from sim_backend.spec import (
     EmulatedJointSpec,
     EmulatorSpec,
@@ -96,6 +97,58 @@ def plant_servo_noise(
             raise ConfigError(f"{config.source} [emulator] {key}: {exc}") from exc
     plant = built[0] if isinstance(built[0], TestbedPlantParams) else TestbedPlantParams()
     return plant, built[1], built[2]
+
+
+@dataclass(frozen=True)
+class EmulatedJointStiffness:
+    """One emulated joint's static stiffness: its gear spring in series with its H54 servo at
+    the gain registers a run leaves it with (the configuration's, written at open, or the
+    emulated device's power-on values)."""
+
+    name: str
+    gear_stiffness_nm_per_rad: float
+    servo: ServoCascade
+
+    @property
+    def compliance_rad_per_nm(self) -> float:
+        """1/K + 1/(Kpp kv): what the joint deflects per N m of load before the servo's
+        velocity integral grows (controller.gravity.joint_static_compliance)."""
+        return 1.0 / self.gear_stiffness_nm_per_rad + 1.0 / self.servo.static_stiffness_nm_per_rad
+
+
+def emulated_joint_stiffness(config: Config) -> tuple[EmulatedJointStiffness, ...]:
+    """The emulated robot's joints as `hil emulate` builds them from this configuration (the
+    truth: [emulator] plant and servo over their defaults, and the [[joint]] gain registers)."""
+    plant, servo, _ = plant_servo_noise(config)
+    n = len(config.joints)
+    if config.model.robot == "dyros-jet":
+        from sim_backend.humanoid.params import RobotTruthParams
+
+        try:
+            truth = RobotTruthParams(**{"servo": servo, **dict(config.emulator.plant)})
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"{config.source} [emulator] plant: {exc}") from exc
+        gears = truth.per_joint("gear_stiffness_nm_per_rad")
+        servos = [truth.servo_params(i) for i in range(n)]
+        power_on = truth.position_gain_registers
+    else:
+        gears = (plant.gear_stiffness_nm_per_rad,) * n
+        servos = [servo] * n
+        power_on = (servo.default_position_gain_register,) * n
+    joints = []
+    for i, joint in enumerate(config.joints):
+        params = servos[i]
+        cascade = params.cascade_at(
+            _register(joint.position_p_gain, power_on[i]),
+            _register(joint.velocity_p_gain, params.default_velocity_p_gain_register),
+            _register(joint.velocity_i_gain, params.default_velocity_i_gain_register),
+        )
+        joints.append(EmulatedJointStiffness(joint.name, float(gears[i]), cascade))
+    return tuple(joints)
+
+
+def _register(configured: int | None, power_on: int) -> int:
+    return power_on if configured is None else configured
 
 
 def emulator_spec(

@@ -33,6 +33,7 @@ from hil.identify import (
     write_identification_figure,
 )
 from hil.identify.models import simulate_joint
+from hil.loop.controller_factory import gc_compliance
 
 PERIOD_S = 0.005
 # Sensor resolutions of the testbed (H54 e-Manual units, RLS RLC2IC on MR075)
@@ -168,6 +169,19 @@ def test_config_fragment_is_toml_with_the_controllers_and_emulators_keys(result)
     assert configured.model.joint_figure("testbed", "stiffness_nm_per_rad") == pytest.approx(
         model["stiffness_nm_per_rad"]
     )
+    # ... and the servo's cascade, under the same names as the emulator's: the gravity
+    # compensator's joint compliance is then the identified joint's 1/K + 1/(Kpp kv)
+    for key, parameter in (
+        ("position_gain_per_s", Parameter.POSITION_GAIN),
+        ("velocity_gain_nms_per_rad", Parameter.VELOCITY_GAIN),
+        ("velocity_integral_time_s", Parameter.VELOCITY_INTEGRAL_TIME),
+    ):
+        assert model[key] == pytest.approx(result[parameter].value, rel=1e-5)
+        assert model[key] == pytest.approx(data["emulator"]["servo"][key])
+    expected = 1 / model["stiffness_nm_per_rad"] + 1 / (
+        model["position_gain_per_s"] * model["velocity_gain_nms_per_rad"]
+    )
+    assert gc_compliance(configured)[0] == pytest.approx(expected, rel=1e-9)
     servo = data["emulator"]["servo"]
     assert set(servo) == {
         "position_gain_per_s",

@@ -5,6 +5,7 @@ re-homing plan (hil/loop/homing.py) against its analytic figures."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ DEVICES = (JointDevices("actuator 1", "link encoder node 5"),)
 PERIOD_S = CONFIG.loop.period_s
 LIMIT_A = 10.0
 COUNT_RAD = 2 * math.pi / 983_040  # one link-encoder count
+MOTOR_PULSE_RAD = 2 * math.pi / 501_923  # one H54 motor-encoder pulse
 
 
 def _supervisor(**safety: object) -> Supervisor:
@@ -189,12 +191,17 @@ def test_a_frozen_encoder_trips_only_once_the_motor_moved_beyond_any_windup() ->
     assert supervisor.events[0].cause == "link_stale" and supervisor.events[0].tick == 32
 
 
-def _second_difference_noise_trip(link: np.ndarray) -> int | None:
+def _second_difference_noise_trip(
+    link: np.ndarray, motor: np.ndarray | None = None, cause: str = "link_noisy"
+) -> int | None:
+    """The tick the noise watch fires at (None: never) with these readings; the motor follows
+    the link's true motion (`motor`, default the link itself)."""
     supervisor = _supervisor(max_deflection_rad=10.0)
+    motor = link if motor is None else motor
     for k, value in enumerate(link):
-        _tick(supervisor, k, _sample(float(value), float(value)))
+        _tick(supervisor, k, _sample(float(motor[k]), float(value)))
         if supervisor.events:
-            assert supervisor.events[0].cause == "link_noisy"
+            assert supervisor.events[0].cause == cause, supervisor.events[0]
             return k
     return None
 
@@ -211,10 +218,63 @@ def test_the_noise_watch_fires_on_noise_and_not_on_motion() -> None:
     assert _second_difference_noise_trip(quantise(np.where(t > 1, 50 * (t - 1) ** 2, 0))) is None
     flicker = quantise(slow) + COUNT_RAD * rng.integers(0, 2, t.size)
     assert _second_difference_noise_trip(flicker) is None
-    # the emulator's noisy_encoder: 50 counts rms on the same motion - found within 20 ticks
+    # the emulator's noisy_encoder: 50 counts rms on the same motion - found within 20 ticks;
+    # the motor (its own encoder, 501,923 pulses/rev) follows the true motion
     noisy = quantise(slow + rng.normal(0, 50 * COUNT_RAD, t.size))
-    tick = _second_difference_noise_trip(noisy)
+    motor = np.round(slow / MOTOR_PULSE_RAD) * MOTOR_PULSE_RAD
+    tick = _second_difference_noise_trip(noisy, motor)
     assert tick is not None and tick <= CONFIG.safety.link_noise_window_ticks
+
+
+def _chatter(amplitude_rad: float, n: int = 400) -> np.ndarray:
+    """A joint oscillating at the loop's rate on a slow motion: +-amplitude every other tick."""
+    t = np.arange(n) * PERIOD_S
+    return 0.05 * np.sin(2 * np.pi * 0.5 * t) + amplitude_rad * (-1.0) ** np.arange(n)
+
+
+def test_the_noise_watch_tells_a_noisy_encoder_from_an_oscillating_joint() -> None:
+    """The link jumps and the motor does not: the encoder (`link_noisy`). The link and the
+    motor jump together, the goal alternating: the joint (`oscillation`). Either stops the run
+    (hold), each with the counts of all three in its message."""
+    # the motor chattering +-0.3 mrad with the link, the goal +-5 mrad (a controller at the
+    # loop's rate; the servo follows a fraction of it, the gear passes it to the link)
+    motion = _chatter(3e-4)
+    link = np.round((motion * 0.8) / COUNT_RAD) * COUNT_RAD
+    motor = np.round(motion / MOTOR_PULSE_RAD) * MOTOR_PULSE_RAD
+    goal = _chatter(5e-3)
+    supervisor = _supervisor(max_deflection_rad=10.0)
+    for k in range(len(link)):
+        _tick(supervisor, k, _sample(float(motor[k]), float(link[k])), float(goal[k]))
+        if supervisor.events:
+            break
+    (event,) = supervisor.events
+    assert event.cause == "oscillation" and event.action == "hold"
+    assert supervisor.state is SafeState.HOLD
+    assert event.tick <= CONFIG.safety.link_noise_window_ticks + 2
+    counts = re.search(r"link (\d+), motor (\d+), goal (\d+) of the last 20", event.message)
+    assert counts is not None and min(int(c) for c in counts.groups()) >= 5, event.message
+    assert "not the sensor" in event.message
+    # the same link readings with a still motor: the encoder is to blame
+    still = np.round(0.05 * np.sin(np.pi * np.arange(400) * PERIOD_S) / MOTOR_PULSE_RAD)
+    assert _second_difference_noise_trip(link, still * MOTOR_PULSE_RAD) is not None
+    # ... and with the motor moving with it, without a goal: the joint, whoever drives it
+    assert _second_difference_noise_trip(link, motor, cause="oscillation") is not None
+
+
+def test_an_oscillation_has_its_own_reaction() -> None:
+    """`[safety] on_oscillation` is the oscillation's reaction, `on_link_noisy` the encoder's."""
+    motion = _chatter(3e-4)
+    link = np.round((motion * 0.8) / COUNT_RAD) * COUNT_RAD
+    motor = np.round(motion / MOTOR_PULSE_RAD) * MOTOR_PULSE_RAD
+    for reactions, expected in (
+        ({"on_oscillation": "torque_off"}, SafeState.TORQUE_OFF),
+        ({"on_link_noisy": "torque_off"}, SafeState.HOLD),
+    ):
+        supervisor = _supervisor(max_deflection_rad=10.0, **reactions)
+        for k in range(len(link)):
+            _tick(supervisor, k, _sample(float(motor[k]), float(link[k])))
+        assert [e.cause for e in supervisor.events] == ["oscillation"]
+        assert supervisor.state is expected
 
 
 def test_the_noise_watch_uses_the_sampling_instants_not_the_nominal_grid() -> None:
@@ -224,11 +284,13 @@ def test_the_noise_watch_uses_the_sampling_instants_not_the_nominal_grid() -> No
     rng = np.random.default_rng(3)
     instants = np.arange(400) * PERIOD_S + rng.normal(0.0, 3e-4, 400)
     link = np.round(0.08 * np.sin(2 * np.pi * 5 * instants) / COUNT_RAD) * COUNT_RAD
+    # the motor read on the nominal grid (only the link's instants jitter here)
+    motor = 0.08 * np.sin(2 * np.pi * 5 * np.arange(400) * PERIOD_S)
     trips = {}
     for stamped in (True, False):
         supervisor = _supervisor(max_deflection_rad=10.0)
         for k in range(400):
-            sample = _sample(float(link[k]), float(link[k]))
+            sample = _sample(float(motor[k]), float(link[k]))
             sample.timestamp_s = float(instants[k]) if stamped else 0.0  # 0: no usable stamps
             supervisor.observe(k, k * PERIOD_S, sample)
         trips[stamped] = [e.cause for e in supervisor.events]

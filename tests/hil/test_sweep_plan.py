@@ -117,7 +117,9 @@ def test_bad_specs_are_refused_with_the_key_named() -> None:
     with pytest.raises(SpecError, match="parameter 'K': unknown keys"):
         parse_spec(GRID + 'colour = "red"\n', "x")
     with pytest.raises(SpecError, match="no such configuration key"):
-        plan(parse_spec(GRID.replace("emulator.servo.position", "model.position"), "x"), CONFIG)
+        plan(
+            parse_spec(GRID.replace("emulator.servo.position", "model.servo_position"), "x"), CONFIG
+        )
     with pytest.raises(SpecError, match="has no"):
         plan(parse_spec(GRID.replace("position_gain_per_s", "gain"), "x"), CONFIG)
     with pytest.raises(SpecError, match="neither a TOML file nor a shipped spec"):

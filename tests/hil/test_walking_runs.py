@@ -16,12 +16,8 @@ import pytest
 
 from hil.config import load_config
 from hil.experiments import WALK_SLOW
-from hil.experiments.walking import (
-    WalkingKinematics,
-    _anchor_feet,
-    _leg_model,
-    _placed_configuration,
-)
+from hil.experiments.legs import anchor_feet, leg_model, placed_configuration
+from hil.experiments.walking_kinematics import WalkingKinematics
 from tests.support.rig import assert_log_complete, run_in_process
 
 pytestmark = pytest.mark.slow
@@ -44,13 +40,13 @@ def test_the_first_weight_shift_of_the_slow_walk(tmp_path: Path) -> None:
 
     pattern = WALK_SLOW.pattern
     kinematics = WalkingKinematics.of(run.data, WALK_SLOW)
-    model = _leg_model()
-    anchors = _anchor_feet(pattern)
+    model = leg_model()
+    anchors = anchor_feet(pattern)
     rows = np.flatnonzero((kinematics.time_s > 1.0) & (kinematics.time_s < FIRST_LIFT_OFF_S))
     gap = []
     for i in rows[::5]:
         tick = int(round(kinematics.time_s[i] / pattern.dt_s))
-        q = _placed_configuration(model, kinematics.links_rad[i], int(anchors[tick]), pattern, tick)
+        q = placed_configuration(model, kinematics.links_rad[i], int(anchors[tick]), pattern, tick)
         gap.append(kinematics.zmp_m[i] - model.centre_of_mass(q)[:2])
     assert np.abs(np.array(gap)).max() < AGREEMENT_M
     # the weight moved onto the left foot: the measured ZMP went most of the planned way

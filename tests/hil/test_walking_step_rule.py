@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from controller.walking import SegmentKind
-from hil.experiments.walking import (
+from hil.experiments.walking import WALK_DYNAMIC
+from hil.experiments.walking_kinematics import (
     CONTACT_SHARE,
     FALL_TILT_RAD,
     LANDED_SHARE,
-    WALK_DYNAMIC,
     WalkingKinematics,
 )
 

@@ -1,0 +1,161 @@
+"""The configuration's controller side: the robot model the controller uses (`[model]`), the
+controller (`[controller]`) and the walking scheme around the walks' pattern (`[walking]`).
+Declared like the rest of the file (schema.py: strict types, finite numbers, no unknown keys)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from controller import (
+    COMPOSITION_READINGS,
+    LAB_KDIST_RAMP_S,
+    LINK_VELOCITY_INCREMENTS,
+    LQR_DESIGNS,
+    GcCompliance,
+)
+from controller.walking import CenterOfMassMeasurement
+from hil.config.section import Section
+from hil.vocabulary import ControllerKind
+
+
+class JointModelSection(Section):
+    """Per-joint overrides of the model's gear and servo figures (`[model.joint.NAME]`; the
+    first table of a `hil identify` fragment)."""
+
+    stiffness_nm_per_rad: float | None = Field(None, gt=0)
+    damping_nms_per_rad: float | None = Field(None, ge=0)
+    servo_gain_per_s: float | None = Field(None, gt=0)
+    position_gain_per_s: float | None = Field(None, gt=0)
+    velocity_gain_nms_per_rad: float | None = Field(None, gt=0)
+    velocity_integral_time_s: float | None = Field(None, gt=0)
+
+
+class ModelSection(Section):
+    """The controller's (nominal) model of the robot: Kim et al. Sec. IV-A.
+
+    robot "single_link": every joint drives its own link swinging in a vertical plane
+    (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
+    robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
+    a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
+    and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
+    off the 200 Hz path; `sm_coupling` "diagonal" (the lab's: one design per joint on Sm's
+    diagonal), "full" (one design on the whole Sm; none exists in double support, where Sm is
+    singular) or "closed-chain" (the whole Sm, designed on the motions the legs and the ground
+    allow: controller/lqr.py; docs/studies/lqr_standing/ says why).
+    Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
+
+    The position servo's cascade, as `hil identify` fits it (same keys and units, so that its
+    fragment pastes here): `position_gain_per_s` Kpp (None: `servo_gain_per_s`, the paper's
+    first-order Kp of (4), which a cascade with a fast velocity loop is), the velocity loop's
+    `velocity_gain_nms_per_rad` kv and `velocity_integral_time_s` Ti. The defaults are the
+    H54-200-S500-R's at its default registers as the emulator models them
+    (sim_backend/servo.py: kv = 2 pi 50 Hz x 0.25 kg m^2, Ti from the stock I/P gain ratio):
+    its static stiffness Kpp kv = 785 N m/rad is what the gravity compensator's "joint"
+    compliance adds to the gear's (`[controller] gc_compliance`; `hil model` prints both).
+    """
+
+    robot: Literal["single_link", "dyros-jet"] = "single_link"
+    description: str | None = None
+    sm_coupling: Literal["diagonal", "full", "closed-chain"] = "diagonal"
+    gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
+    stiffness_nm_per_rad: float = Field(2000.0, gt=0)
+    damping_nms_per_rad: float = Field(100.0, ge=0)
+    servo_gain_per_s: float = Field(10.0, gt=0)
+    position_gain_per_s: float | None = Field(None, gt=0)  # None: servo_gain_per_s
+    velocity_gain_nms_per_rad: float = Field(78.5, gt=0)
+    velocity_integral_time_s: float = Field(15.0, gt=0)
+    link_inertia_kg_m2: float = Field(0.376, gt=0)
+    gravity_moment_kg_m: float = Field(0.63, ge=0)
+    joint: dict[str, JointModelSection] = Field(default_factory=dict)
+
+    def joint_figure(self, joint: str, key: str) -> float:
+        override = self.joint.get(joint)
+        value = getattr(override, key) if override is not None else None
+        if value is None and key == "position_gain_per_s" and self.position_gain_per_s is None:
+            return self.joint_figure(joint, "servo_gain_per_s")
+        return float(value if value is not None else getattr(self, key))
+
+
+class ControllerSection(Section):
+    """The controller (Kim et al. Sec. III) and its options; controller/controllers.py
+    ControllerParams says what each does. The choices are the controller package's own.
+
+    gc_compliance: what the gravity compensator (8) offsets, ug = C tau_g: "joint" (default),
+    C = 1/K + 1/(Kpp kv) from [model], the gear in series with the position servo's static
+    stiffness, which is what the joint deflects under a load on the time scale of a step;
+    "gear", the paper's literal K^-1, exact only for a servo that holds any load without lag
+    (its model (4)). controller/gravity.py derives it; docs/humanoid.md compares the two.
+    """
+
+    name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
+    gc_compliance: GcCompliance = Field(GcCompliance.JOINT, strict=False)
+    kdist: float = Field(1.0, ge=0)
+    kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
+    q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
+    q_state: float = Field(1.0, ge=0)
+    r_input: float = Field(1.0, gt=0)
+    dob_cutoff_hz: float | None = Field(None, gt=0)  # the Q filter by its cut-off, or ...
+    dob_filter_pole: float | None = Field(None, ge=0, lt=1)  # ... by its pole; neither: 0.7
+    composition: str = "accumulated"  # the reading of (25)
+    dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
+    discretization: str = "euler"  # the LQR design
+    link_velocity_increment: str = "backward-difference"
+
+    @field_validator("composition")
+    @classmethod
+    def _composition(cls, value: str) -> str:
+        return _one_of(value, COMPOSITION_READINGS)
+
+    @field_validator("discretization")
+    @classmethod
+    def _discretization(cls, value: str) -> str:
+        return _one_of(value, LQR_DESIGNS)
+
+    @field_validator("link_velocity_increment")
+    @classmethod
+    def _increment(cls, value: str) -> str:
+        return _one_of(value, LINK_VELOCITY_INCREMENTS)
+
+    @model_validator(mode="after")
+    def _filter_and_reading(self) -> ControllerSection:
+        if self.dob_cutoff_hz is not None and self.dob_filter_pole is not None:
+            raise ValueError("give dob_cutoff_hz or dob_filter_pole, not both")
+        if self.composition == "accumulated-integral" and self.dob_integral_time_s is None:
+            raise ValueError(
+                "composition 'accumulated-integral' needs dob_integral_time_s (the servo's "
+                "velocity-loop integral time; `hil identify` measures it)"
+            )
+        return self
+
+
+def _one_of(value: str, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise ValueError(f"must be one of {list(choices)}")
+    return value
+
+
+class WalkingSection(Section):
+    """The lab's walking scheme around the walking pattern (DYROS-JET's walks; the lab's
+    psh117/dyros_jet walking_controller.cpp; controller/walking/lab_terms.py derives each term).
+
+    com_feedback_gain: kp of the CoM feedback on the pelvis, per tick: the pelvis moves by kp
+        (CoM desired - CoM measured from the link encoders) every tick, for every controller
+        (it is the pattern's feedback); 0.15 is the lab's master, 0 turns it off (the plan's
+        IK alone). com_feedback_limit_m bounds the pelvis correction. com_measured_from:
+        "commanded-pelvis" (the lab's: the measured legs' CoM around the pelvis where the
+        scheme puts it) or "stance-sole" (the whole CoM from the encoders, the stance sole flat).
+    deflection_model, support_hip_roll_offsets: the lab's position-mode terms, applied to the
+        default controller only (`pid`: the actuator's own position control; the lab applied
+        them with its LQR off): the Humanoids-2016 deflection model a tau + b on hip pitch,
+        knee and ankle pitch, and the support hip roll's ramped offsets (4 / 8.5 deg).
+    """
+
+    com_feedback_gain: float = Field(0.15, ge=0, le=1)
+    com_feedback_limit_m: float = Field(0.05, gt=0, le=0.2)
+    com_measured_from: CenterOfMassMeasurement = Field(
+        CenterOfMassMeasurement.COMMANDED_PELVIS, strict=False
+    )
+    deflection_model: bool = True
+    support_hip_roll_offsets: bool = True
