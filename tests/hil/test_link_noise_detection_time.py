@@ -25,12 +25,14 @@ NOMINAL_COUNTS_RMS = 0.5  # the read head's own flicker (sim_backend/canbus/enco
 TRIALS = 3000
 
 
-def _sample(angle_rad: float, k: int) -> JointSample:
+def _sample(link_angle_rad: float, k: int) -> JointSample:
+    """A joint at rest whose link encoder reads `link_angle_rad` (the motor's own encoder, read
+    by the actuator, does not see the link encoder's noise)."""
     one = np.ones(1)
     return JointSample(
         timestamp_s=k * PERIOD_S,
-        motor_angle_rad=np.array([angle_rad]),
-        link_angle_rad=np.array([angle_rad]),
+        motor_angle_rad=np.array([0.0]),
+        link_angle_rad=np.array([link_angle_rad]),
         motor_velocity_rad_s=0 * one,
         motor_current_a=0 * one,
         actuator_fault=np.zeros(1, dtype=np.uint8),
