@@ -42,6 +42,11 @@ from controller.lqr import (
     LqrWeights,
     TrackingGain,
     design_continuous_tracking_lqr,
+)
+from controller.lqr_designs import (
+    SERVO_MODELS,
+    GainDesigner,
+    ServoModel,
     design_discrete_tracking_lqr,
 )
 from controller.model import (
@@ -50,6 +55,7 @@ from controller.model import (
     flexible_joint_state_space,
     single_link_sm,
 )
+from controller.servo_cascade import ServoCascadeParams
 
 __all__ = [
     "COMPOSITION_READINGS",
@@ -59,6 +65,7 @@ __all__ = [
     "LAB_Q_FILTER_POLE",
     "LINK_VELOCITY_INCREMENTS",
     "LQR_DESIGNS",
+    "SERVO_MODELS",
     "Composition",
     "CompositionReading",
     "ControlTerms",
@@ -69,6 +76,7 @@ __all__ = [
     "DisturbanceObserver",
     "FlexibleJointParams",
     "FlexibleJointStateEstimator",
+    "GainDesigner",
     "GravityCompensator",
     "GravityModel",
     "JointController",
@@ -77,6 +85,8 @@ __all__ = [
     "LqrWeights",
     "NoGravity",
     "PendulumGravity",
+    "ServoCascadeParams",
+    "ServoModel",
     "TrackingGain",
     "design_continuous_tracking_lqr",
     "design_discrete_tracking_lqr",

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from controller import FlexibleJointParams, LqrWeights, design_discrete_tracking_lqr, discretise
-from controller.lqr import motion_subspace
+from controller.closed_chain import motion_subspace
 from controller.model import flexible_joint_state_space, single_link_sm
 
 DT_S = 0.005
