@@ -150,24 +150,28 @@ def discrete_lqr_batch(
     big_a = a_n
     big_g = b @ np.linalg.solve(r, np.swapaxes(b, -1, -2))
     big_h = 0.5 * (q_n + np.swapaxes(q_n, -1, -2))
-    for _ in range(SDA_MAX_STEPS):
-        w = eye + big_g @ big_h
-        w_inv_a = np.linalg.solve(w, big_a)
-        w_inv_g = np.linalg.solve(w, big_g)
-        next_h = big_h + np.swapaxes(big_a, -1, -2) @ big_h @ w_inv_a
-        big_g = big_g + big_a @ w_inv_g @ np.swapaxes(big_a, -1, -2)
-        big_a = big_a @ w_inv_a
-        change = np.max(np.abs(next_h - big_h), axis=(-1, -2))
-        big_h = 0.5 * (next_h + np.swapaxes(next_h, -1, -2))
-        if np.all(change <= SDA_TOLERANCE * np.maximum(1.0, np.max(np.abs(big_h), axis=(-1, -2)))):
-            break
-    else:
+    converged = False
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging H is refused below
+        for _ in range(SDA_MAX_STEPS):
+            w = eye + big_g @ big_h
+            w_inv_a = np.linalg.solve(w, big_a)
+            w_inv_g = np.linalg.solve(w, big_g)
+            next_h = big_h + np.swapaxes(big_a, -1, -2) @ big_h @ w_inv_a
+            big_g = big_g + big_a @ w_inv_g @ np.swapaxes(big_a, -1, -2)
+            big_a = big_a @ w_inv_a
+            change = np.max(np.abs(next_h - big_h), axis=(-1, -2))
+            big_h = 0.5 * (next_h + np.swapaxes(next_h, -1, -2))
+            if not np.all(np.isfinite(big_h)):
+                break
+            scale = np.maximum(1.0, np.max(np.abs(big_h), axis=(-1, -2)))
+            if np.all(change <= SDA_TOLERANCE * scale):
+                converged = True
+                break
+    if not converged:
         raise ValueError(
             "no stabilising discrete Riccati solution: the doubling iteration did not converge "
             "((A, B) not stabilisable or (A, Q) has unobservable modes on the unit circle)"
         )
-    if not np.all(np.isfinite(big_h)):
-        raise ValueError("no stabilising discrete Riccati solution: the iteration diverged")
     gain = _discrete_gain(a, b, r, big_h, cross)
     return LqrSolution(gain, big_h, np.linalg.eigvals(a - b @ gain))
 

@@ -9,6 +9,7 @@ from controller import (
     FlexibleJointParams,
     JointController,
     LqrWeights,
+    ServoCascadeParams,
     make_controller,
 )
 from hil.config import Config, ConfigError
@@ -31,17 +32,35 @@ def joint_params(config: Config) -> FlexibleJointParams:
     )
 
 
+def servo_cascade(config: Config) -> ServoCascadeParams | None:
+    """The LQR's servo model from [model]: None for the paper's first-order (4), else the
+    cascade's figures per joint."""
+    model = config.model
+    if model.servo_model != "cascade":
+        return None
+    names = config.joint_names
+
+    def figures(key: str) -> np.ndarray:
+        return np.array([model.joint_figure(name, key) for name in names])
+
+    return ServoCascadeParams(
+        velocity_gain_nms_per_rad=figures("servo_velocity_gain_nms_per_rad"),
+        rotor_inertia_kg_m2=figures("rotor_inertia_kg_m2"),
+        viscous_friction_nms_per_rad=figures("motor_viscous_friction_nms_per_rad"),
+    )
+
+
 def build_controller(
     config: Config,
     choice: ControllerChoice,
     period_s: float,
     robot: RobotModel | None = None,
     start_rad: np.ndarray | None = None,
-    support: object = None,
+    contact: object = None,
 ) -> JointController:
     """The chosen controller for the configured robot (hil/loop/robot_model.py), its LQR
     designed on the Sm of the start posture `start_rad` (the experiment's first reference) and
-    support state."""
+    the LQR's contact there (`RobotModel.lqr_contacts`)."""
     section = config.controller
     n = len(config.joints)
     robot = robot or robot_model(config)
@@ -70,6 +89,8 @@ def build_controller(
         discretisation=section.discretization,  # type: ignore[arg-type]
         link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
         lqr_coupling=robot.lqr_coupling,  # type: ignore[arg-type]
+        servo_cascade=servo_cascade(config),
+        kdist_reference=section.kdist_reference,
     )
-    sm = robot.sm(start, support)
+    sm = robot.sm(start, contact)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

@@ -171,3 +171,39 @@ def test_double_support_designs_on_the_coupled_plant(double_support_sm: np.ndarr
     # no integral action on what the chain cannot move
     null = np.linalg.eigh(sm)[1][:, :6]
     assert np.abs(chain.error_gain @ null).max() < 1e-9
+
+
+def test_the_cascade_on_the_closed_chain(double_support_sm: np.ndarray) -> None:
+    """The closed chain with the servo cascade: no error gain (nor link gain) in Sm's null space,
+    and from a warm start (the last posture's Riccati solution, the basis rotated onto the last
+    one) the designer gives the gain it designs from scratch."""
+    from controller import GainDesigner, ServoCascadeParams
+
+    sm = double_support_sm
+    params = _humanoid_params()
+    servo = ServoCascadeParams.h54(12)
+    weights = LqrWeights(input_increment_weight=1e5)
+    gain = design_discrete_tracking_lqr(params, sm, DT_S, weights, "zoh", "closed-chain", servo)
+    null = np.linalg.eigh(sm)[1][:, :6]
+    assert np.abs(gain.error_gain @ null).max() < 1e-9
+    assert np.abs(gain.state_increment_gain[:, 12:] @ np.kron(np.eye(2), null)).max() < 1e-9
+    assert gain.motor_velocity_increment_gain is not None
+    assert gain.spectral_radius < 1
+    designer = GainDesigner(params, DT_S, weights, "zoh", "closed-chain", servo)
+    designer.design(sm)
+    from controller.humanoid import (
+        WALKING_READY_LEG_ANGLES_RAD,
+        ContactProjectedInertia,
+        LegModel,
+        SupportState,
+    )
+
+    posture = np.array(WALKING_READY_LEG_ANGLES_RAD) + 0.002  # 2 mrad on every joint
+    nearby = ContactProjectedInertia(LegModel(URDF.read_text())).sm(posture, SupportState.DOUBLE)
+    warm = designer.design(nearby)
+    assert designer.newton_steps >= 1
+    cold = design_discrete_tracking_lqr(params, nearby, DT_S, weights, "zoh", "closed-chain", servo)
+    assert np.allclose(warm.stacked, cold.stacked, rtol=1e-7, atol=1e-10)
+    assert np.allclose(
+        warm.motor_velocity_increment_gain, cold.motor_velocity_increment_gain, atol=1e-10
+    )
