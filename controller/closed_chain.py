@@ -21,10 +21,6 @@ make; V'e = 0 is reachable (the link goes to the closure-consistent posture near
 reference), the rest of the error is left to the springs. The gain maps back to [e; dx]
 (`gain_from_chain`), error gain K_e V'. With a nonsingular Sm (one foot, the testbed) it is the
 "full" design.
-
-The basis of a subspace is not unique (any rotation of V spans it). For a warm start between two
-postures, `aligned_basis` rotates the new basis onto the last one (orthogonal Procrustes), so
-that nearby postures give nearby reduced models and Riccati solutions.
 """
 
 from __future__ import annotations
@@ -57,16 +53,6 @@ def motion_subspace(sm: np.ndarray, rtol: float = MOTION_SUBSPACE_RTOL) -> np.nd
     if np.min(eigenvalues) < -rtol * largest:
         raise ValueError(f"Sm must be positive semi-definite, got eigenvalue {eigenvalues.min()}")
     return vectors[:, eigenvalues > rtol * largest]
-
-
-def aligned_basis(basis: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
-    """`basis` rotated (within its span) to be closest to `previous` in the Frobenius norm:
-    V R with R = U W' from the SVD V'V_prev = U S W' (orthogonal Procrustes). Unchanged when
-    there is no previous basis of the same shape."""
-    if previous is None or previous.shape != basis.shape:
-        return basis
-    u, _, wt = np.linalg.svd(basis.T @ previous)
-    return basis @ (u @ wt)
 
 
 def chain_coordinates(full: StateSpace, basis: np.ndarray, n_motor_states: int) -> StateSpace:

@@ -110,6 +110,10 @@ class ControllerParams:
     kdist_reference: what Kdist is measured against: "per-tick" (the lab's: the DOB term
         Kdist q is added per tick whatever the LQR) or "paper-yield" (Kdist scaled per joint so
         that the static yield Ke^-1 Kdist d is the paper's design's; controller/lqr_designs.py).
+    reference_feedforward: False (the paper's (21), which takes d theta_d/dt ~ 0: the goal
+        follows a moving reference only through the error's integral) or True (the reference's
+        increment is added to duc, so uc moves with theta_d and the LQR corrects about it: a
+        gentle integral can then follow a walk; docs/humanoid.md).
     """
 
     joints: FlexibleJointParams
@@ -126,6 +130,7 @@ class ControllerParams:
     link_velocity_increment: LinkVelocityIncrement = "backward-difference"
     servo_cascade: ServoCascadeParams | None = None
     kdist_reference: KdistReference = "per-tick"
+    reference_feedforward: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.joints, FlexibleJointParams):
@@ -439,6 +444,7 @@ class _LqrController(JointController):
             None if integral_time is None else min(1.0, dt_s / integral_time),
         )
         self._error = np.zeros(n)
+        self._reference = np.zeros(n)  # the last tick's, for the reference feed-forward
         self._increment = np.zeros(n)
         self._scratch = np.zeros(n)
         self._dob_scaled = np.zeros(n)
@@ -477,6 +483,7 @@ class _LqrController(JointController):
         if self._dob is not None:
             self._dob.reset(motor)
         self._composition.reset(goal, self._compensator.input_rad(reference))
+        self._reference[:] = reference
 
     def _resync(self, motor: np.ndarray, link: np.ndarray) -> None:
         self._estimator.resync(motor, link)
@@ -495,6 +502,10 @@ class _LqrController(JointController):
             np.matmul(velocity_gain, self._estimator.motor_velocity_increment, out=self._scratch)
             self._increment += self._scratch
         np.negative(self._increment, out=self._increment)
+        if self.params.reference_feedforward:  # uc moves with theta_d (d theta_d added)
+            self._increment += reference
+            self._increment -= self._reference
+        self._reference[:] = reference
         if self._dob is not None:
             # compares against the goal sent last tick (composition.u after notify_applied)
             dob_term = self._dob.update(motor, self._composition.u)

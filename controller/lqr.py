@@ -91,9 +91,9 @@ from controller.riccati import (
     LqrSolution,
     check_lqr_arguments,
     continuous_lqr,
-    discrete_lqr_newton,
+    discrete_lqr,
+    discrete_lqr_batch,
 )
-from controller.riccati import discrete_lqr as discrete_lqr  # re-exported: offered here before
 
 Coupling = Literal["full", "diagonal", "closed-chain"]
 COUPLINGS: tuple[str, ...] = get_args(Coupling)
@@ -298,13 +298,11 @@ class ModelDesign:
     """One discrete tracking design on a continuous model (`design_on_model`).
 
     gain: n_inputs x (n_errors + n_states) per tick on [e; dx]; spectral_radius: of the designed
-    loop A_aug - B_aug K; riccati: its Riccati solution; newton_steps: warm-start steps taken
-    (0: solved from scratch)."""
+    loop A_aug - B_aug K; riccati: its Riccati solution."""
 
     gain: np.ndarray
     spectral_radius: float
     riccati: np.ndarray
-    newton_steps: int
 
 
 def design_on_model(
@@ -312,12 +310,12 @@ def design_on_model(
     dt_s: float,
     weights: LqrWeights,
     design: LqrDesign,
-    start: np.ndarray | None = None,
+    reference_solver: bool = False,
 ) -> ModelDesign:
     """The discrete derivative-form design (module docstring) on any continuous model
     dx/dt = A x + B u, y = C x: errors e = y - y_d (rows of C), Q = blockdiag(Qe I, Qx I),
-    R = r I. `start`: a Riccati solution of a nearby problem of the same size (warm start,
-    `controller.riccati.discrete_lqr_newton`)."""
+    R = r I; solved by the doubling algorithm (`controller.riccati.discrete_lqr_batch`), or by
+    scipy's QZ solver with `reference_solver` (the product before; for checks and benches)."""
     if design not in LQR_DESIGNS:
         raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {design!r}")
     n_errors, n_states = continuous.c.shape
@@ -345,10 +343,15 @@ def design_on_model(
         system = discretise(continuous, dt_s, servo_discretisation(design))
         a_aug, b_aug = augmented_discrete(system.a, system.b, system.c)
         q_aug, r_aug, fold = q, r, None
-    solution, steps = discrete_lqr_newton(a_aug, b_aug, q_aug, r_aug, start)
+    if reference_solver:
+        solution = discrete_lqr(a_aug, b_aug, q_aug, r_aug)
+    else:
+        check_lqr_arguments(a_aug, b_aug, q_aug, r_aug)
+        batch = discrete_lqr_batch(a_aug[None], b_aug[None], q_aug[None], r_aug[None])
+        solution = LqrSolution(batch.gain[0], batch.riccati[0], batch.closed_loop_eigenvalues[0])
     gain = solution.gain if fold is None else solution.gain + fold
     if design == "continuous-cost":  # w = duc/dt on [e; dx/dt]: duc(k) = -(K_e dt) e - K_x dx(k)
         gain = gain.copy()
         gain[:, :n_errors] *= dt_s
     radius = float(np.max(np.abs(solution.closed_loop_eigenvalues)))
-    return ModelDesign(gain, radius, solution.riccati, steps)
+    return ModelDesign(gain, radius, solution.riccati)

@@ -12,11 +12,47 @@ Three choices, each typed, each orthogonal to the others:
                                   (`controller.servo_cascade`): its finite static stiffness
     design        "euler" | "zoh" | "continuous-cost"  (controller/lqr.py says what each weighs)
 
+Four designs are named in docs/humanoid.md; all keep the paper's structure (the augmented
+derivative form (21), the incremental input (24), Qe = 10 I on the error and Qx = I on the
+increments, the DOB's composition (25) in the lab's accumulated reading):
+
+    paper         one support foot's Sm (controller.humanoid.support), diagonal, the servo (4),
+                  Euler, R = I: Kim et al. as published, the lab's code
+    lab           both feet's Sm in double support, otherwise as "paper"
+    closed-chain  both feet's whole Sm on the chain's motions, the servo (4), Euler, R = I
+    ours          the closed chain on the servo cascade, sampled exactly ("zoh"), R = 1e5,
+                  Kdist against the paper's design ("paper-yield")
+
+How ours differs from the paper, and why (docs/studies/lqr_design measures each point on the
+emulated robot linearised about its stand, sim_backend/humanoid/linear.py):
+- The servo. (4) makes the motor a kinematic source; the H54 is a spring (Kpp kv = 785 N m/rad)
+  and damper (kv) to its goal in series with the gear. On (4) the LQR's gains on the link
+  increments are large (14.7 per rad on an ankle pitch); through the real cascade, once the
+  gearbox friction slips, they make the loop unstable at the Nyquist frequency (|z| up to 5):
+  the chatter the link-noise watch stops. Designed on the cascade, they are what the servo can
+  follow. The cascade's fast pole is beyond Euler's reach at 200 Hz: sampled exactly.
+- The chain. With two feet down Sm is singular; "closed-chain" (controller.closed_chain)
+  integrates only the error the legs can remove (no Jordan blocks at z = 1, no goals ramping
+  against the ground).
+- R. What the rigid-contact model does not have bounds the loop's gain: the emulated soles'
+  contact is soft (MuJoCo's solref of 20 ms: the standing robot rocks on them at 3.7-5.4 Hz,
+  2500 N m/rad about the stance sole's roll axis on one foot, as soft as a gear), and the joint
+  encoders do not see that rocking. With the paper's R = I (an integral gain of 40-400 1/s) the
+  loop drives those modes unstable (2.7 Hz on the emulated robot); R = 1e5 keeps the loop's
+  bandwidth under them (integral gain ~1 1/s in double support, ~2 on one foot), and every
+  oscillatory mode inside the unit circle in each support state with the friction stuck and
+  sliding. R = 1e4 is stable on two feet only.
+- Kdist. In the accumulated reading the static yield is Ke^-1 Kdist d: against a gain 25-100
+  times gentler than the paper's, the paper's Kdist would yield 25-100 times more (the robot
+  sinks onto its servo lag). "paper-yield" scales Kdist by Ke_ours / Ke_paper per joint, so that
+  the paper's 0.2 and 1.0 yield what they yielded against the paper's design.
+
 Cost per design (measured side by side, `hil bench loop --robot dyros-jet`, docs/humanoid.md):
 "diagonal" builds the n one-joint problems as stacked arrays and solves them in one batch
-(`controller.riccati.discrete_lqr_batch`, the doubling algorithm) instead of n scipy calls.
-The coupled designs keep what they solved (`GainDesigner`): the next posture's problem starts
-from the last Riccati solution (Newton-Hewer), on a chain basis rotated onto the last one.
+(`controller.riccati.discrete_lqr_batch`, the doubling algorithm) instead of n scipy calls; the
+coupled designs (one problem of 30-60 states) by the same algorithm, a batch of one, which on
+these sizes beats scipy's QZ solver several times over from scratch (so no warm start is kept:
+each design depends on its Sm alone, the same in every run).
 
 The DOB's gain against this LQR ("paper-yield"). In the lab's accumulated reading of (25) the
 static yield to a disturbance d is e = Ke^-1 Kdist d (`controller.composition`): Kdist means
@@ -29,18 +65,12 @@ yields as the paper's Kdist did against the paper's gain.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from typing import Literal, get_args
 
 import numpy as np
 import scipy.linalg
 
-from controller.closed_chain import (
-    aligned_basis,
-    chain_coordinates,
-    gain_from_chain,
-    motion_subspace,
-)
+from controller.closed_chain import chain_coordinates, gain_from_chain, motion_subspace
 from controller.lqr import (
     COUPLINGS,
     LQR_DESIGNS,
@@ -181,19 +211,10 @@ def _van_loan_batch(
     )
 
 
-@dataclass
-class _WarmStart:
-    """What the last coupled design of one structure left: its chain basis and Riccati solution."""
-
-    basis: np.ndarray | None
-    riccati: np.ndarray
-
-
 class GainDesigner:
-    """Designs for one controller's choices, remembering the last coupled solution per
-    structure (the rank of Sm: double support 6, one foot 12) for a warm start. Deterministic:
-    the same sequence of requests gives the same gains. `newton_steps` counts the warm steps.
-    kdist_reference "paper-yield": each gain carries `paper_yield_scale` as its DOB scale."""
+    """Designs for one controller's choices (module docstring); each gain depends on its Sm
+    alone. kdist_reference "paper-yield": each gain carries `paper_yield_scale` as its DOB
+    scale."""
 
     def __init__(
         self,
@@ -204,6 +225,8 @@ class GainDesigner:
         coupling: Coupling,
         servo: ServoCascadeParams | None = None,
         kdist_reference: KdistReference = "per-tick",
+        *,
+        reference_solver: bool = False,
     ) -> None:
         if method not in LQR_DESIGNS:
             raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {method!r}")
@@ -219,8 +242,7 @@ class GainDesigner:
         if kdist_reference not in KDIST_REFERENCES:
             raise ValueError(f"kdist_reference must be one of {KDIST_REFERENCES}")
         self.kdist_reference = kdist_reference
-        self._warm: dict[int, _WarmStart] = {}
-        self.newton_steps = 0
+        self.reference_solver = reference_solver  # the coupled designs by scipy (benches, checks)
 
     def design(self, sm: np.ndarray) -> TrackingGain:
         """The gain for this Sm (validated by the caller: `controller.model.validate_sm`)."""
@@ -238,27 +260,13 @@ class GainDesigner:
             )
             return _tracking_gain(gain, n, motor_states, self.dt_s, radius)
         full, motor_states = _model(self.joints, sm, self.servo)
-        basis = None
-        if self.coupling == "closed-chain":
-            basis = motion_subspace(sm)
-            if basis.shape[1] == n:
-                basis = None  # nonsingular Sm: the chain's coordinates are the joints'
-        key = n if basis is None else basis.shape[1]
-        warm = self._warm.get(key)
-        if basis is not None:
-            basis = aligned_basis(basis, warm.basis if warm is not None else None)
-            model = chain_coordinates(full, basis, motor_states * n)
-        else:
-            model = full
+        basis = motion_subspace(sm) if self.coupling == "closed-chain" else None
+        if basis is not None and basis.shape[1] == n:
+            basis = None  # nonsingular Sm: the chain's coordinates are the joints'
+        model = full if basis is None else chain_coordinates(full, basis, motor_states * n)
         result = design_on_model(
-            model,
-            self.dt_s,
-            self.weights,
-            self.method,
-            start=None if warm is None else warm.riccati,
+            model, self.dt_s, self.weights, self.method, reference_solver=self.reference_solver
         )
-        self.newton_steps += result.newton_steps
-        self._warm[key] = _WarmStart(basis, result.riccati)
         gain = result.gain
         if basis is not None:
             gain = gain_from_chain(gain, basis, motor_states * n)

@@ -204,6 +204,7 @@ class ControllerSection(Section):
     dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
     discretization: str = "euler"  # the LQR design
     kdist_reference: Literal["per-tick", "paper-yield"] = "per-tick"  # what Kdist yields against
+    reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments
     link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")

@@ -91,6 +91,7 @@ def build_controller(
         lqr_coupling=robot.lqr_coupling,  # type: ignore[arg-type]
         servo_cascade=servo_cascade(config),
         kdist_reference=section.kdist_reference,
+        reference_feedforward=section.reference_feedforward,
     )
     sm = robot.sm(start, contact)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

@@ -15,10 +15,11 @@ thread every 100 ms). A design runs in a worker thread, never inside a tick's co
     wall clock  the same requests; a finished design is installed at the start of the first
                 tick after it is done (a tick never waits for it).
 
-Designs are requested every `period_ticks` and at every contact change. The designer keeps the
-last coupled solution for a warm start (controller/lqr_designs.py), and runs with one BLAS
-thread: on this 2-core machine a threaded BLAS made a 36-state DARE take 138 ms instead of
-52 ms (docs/walking.md), and a single-threaded reduction is the same bits every run.
+Designs are requested every `period_ticks` and at every contact change (the doubling solver of
+controller/lqr_designs.py: 1-6 ms for the lab's diagonal design, 5-30 ms for the closed chain on
+the servo cascade on this machine), with one BLAS thread: on this 2-core machine a threaded BLAS
+made a 36-state DARE take 138 ms instead of 52 ms (docs/walking.md), and a single-threaded
+reduction is the same bits every run.
 Each design's latency (request to use) and compute time are recorded for the summary.
 """
 
@@ -35,7 +36,7 @@ from controller import JointController
 from controller.lqr import TrackingGain
 from hil.loop.robot_model import RobotModel
 
-LOCKSTEP_LEAD_TICKS = 2  # a design requested at tick k is in force from tick k + 2
+LOCKSTEP_LEAD_TICKS = 4  # a design requested at tick k is in force from tick k + 4 (20 ms)
 
 
 @dataclass
@@ -48,14 +49,13 @@ class _Request:
 
 @dataclass
 class GainSchedule:
-    """What the scheduler did: designs used, their latency (request to use) and compute time
-    [s], and the warm start's Newton steps in all."""
+    """What the scheduler did: designs used, their latency (request to use), compute time and
+    how long a tick waited for one [s]."""
 
     designs: int = 0
     latencies_s: list[float] = field(default_factory=list)
     compute_s: list[float] = field(default_factory=list)
     waited_s: list[float] = field(default_factory=list)
-    newton_steps: int = 0
 
     def record(self) -> dict[str, object]:
         def stats(values: list[float]) -> tuple[float | None, float | None]:
@@ -74,7 +74,6 @@ class GainSchedule:
             "compute_median_s": compute[0],
             "compute_max_s": compute[1],
             "tick_wait_max_s": waited[1],
-            "newton_steps": self.newton_steps,
         }
 
 
@@ -175,7 +174,6 @@ class GainScheduler:
         self.schedule.designs += 1
         self.schedule.latencies_s.append(time.perf_counter() - request.requested_s)
         self.schedule.compute_s.append(compute_s)
-        self.schedule.newton_steps = self._designer.newton_steps
 
     def _work(self) -> None:
         while True:

@@ -9,7 +9,7 @@ import scipy.linalg
 
 from controller import FlexibleJointParams, LqrWeights, ServoCascadeParams
 from controller.lqr_designs import design_discrete_tracking_lqr
-from controller.riccati import discrete_lqr, discrete_lqr_batch, discrete_lqr_newton
+from controller.riccati import discrete_lqr_batch
 
 DT_S = 0.005
 
@@ -64,15 +64,13 @@ def test_the_batched_solver_refuses_an_unstabilisable_problem() -> None:
         discrete_lqr_batch(a, b, np.eye(2)[None], np.eye(1)[None])
 
 
-def test_newton_from_a_nearby_solution_agrees_with_scipy() -> None:
-    a, b, q, r = (x[0] for x in _random_problems(3, 1, 6, 2))
-    start = scipy.linalg.solve_discrete_are(a, b, q, r)
-    nearby = a + 1e-3 * np.eye(6)
-    solution, steps = discrete_lqr_newton(nearby, b, q, r, start)
-    assert 1 <= steps <= 4  # quadratic convergence from a close start
-    assert np.allclose(solution.riccati, discrete_lqr(nearby, b, q, r).riccati, rtol=1e-9)
-    cold, cold_steps = discrete_lqr_newton(nearby, b, q, r, None)
-    assert cold_steps == 0 and np.allclose(cold.riccati, solution.riccati, rtol=1e-9)
+def test_the_doubling_solver_on_a_coupled_problem_agrees_with_scipy() -> None:
+    """One larger problem (a batch of one), as the coupled designs use it."""
+    a, b, q, r = _random_problems(3, 1, 30, 6)
+    solution = discrete_lqr_batch(a, b, q, r)
+    reference = scipy.linalg.solve_discrete_are(a[0], b[0], q[0], r[0])
+    assert np.allclose(solution.riccati[0], reference, rtol=1e-9, atol=1e-9)
+    assert _residual(a[0], b[0], q[0], r[0], solution.riccati[0]) < 1e-9
 
 
 @pytest.mark.parametrize("method", ["euler", "zoh", "continuous-cost"])

@@ -23,7 +23,12 @@ from tests.support.humanoid_loop import URDF_PATH, Dob, closed_loop, loop_modes,
 
 DT = 0.005
 READY = np.array(WALKING_READY_LEG_ANGLES_RAD)
-PAPERS_CONTROLLER = {"discretization": "euler", "r_input": 1.0, "kdist_reference": "per-tick"}
+PAPERS_CONTROLLER = {
+    "discretization": "euler",
+    "r_input": 1.0,
+    "kdist_reference": "per-tick",
+    "reference_feedforward": False,
+}
 FIRST_ORDER = {"servo_model": "first-order"}
 CONFIGS = {
     "paper (support foot, diagonal, Euler)": {
@@ -91,7 +96,9 @@ def main() -> None:
             for friction, model in models.items():
                 lqr = loop_modes(model, closed_loop(model, gain))
                 with_dob = loop_modes(model, closed_loop(model, gain, dob))
-                cells.append(f"{friction.value}: {lqr.text()} | +DOB 0.2 {with_dob.oscillatory:.4f}")
+                cells.append(
+                    f"{friction.value}: {lqr.text()} | +DOB 0.2 {with_dob.oscillatory:.4f}"
+                )
             print(f"{state:6s} {name:42s} Sm {contact.value:10s} " + "; ".join(cells), flush=True)
 
 
