@@ -17,36 +17,30 @@ from hil.loop.robot_model import RobotModel, robot_model
 from hil.vocabulary import ControllerChoice
 
 
+def _figures(config: Config, key: str) -> np.ndarray:
+    """A [model] figure per joint (with its per-joint overrides)."""
+    return np.array([config.model.joint_figure(name, key) for name in config.joint_names])
+
+
 def joint_params(config: Config) -> FlexibleJointParams:
     """K, D, Kp per joint from [model] (with its per-joint overrides)."""
-    model = config.model
-    names = config.joint_names
-
-    def figures(key: str) -> np.ndarray:
-        return np.array([model.joint_figure(name, key) for name in names])
 
     return FlexibleJointParams(
-        stiffness_nm_per_rad=figures("stiffness_nm_per_rad"),
-        damping_nms_per_rad=figures("damping_nms_per_rad"),
-        servo_gain_per_s=figures("servo_gain_per_s"),
+        stiffness_nm_per_rad=_figures(config, "stiffness_nm_per_rad"),
+        damping_nms_per_rad=_figures(config, "damping_nms_per_rad"),
+        servo_gain_per_s=_figures(config, "servo_gain_per_s"),
     )
 
 
 def servo_cascade(config: Config) -> ServoCascadeParams | None:
     """The LQR's servo model from [model]: None for the paper's first-order (4), else the
     cascade's figures per joint."""
-    model = config.model
-    if model.servo_model != "cascade":
+    if config.model.servo_model != "cascade":
         return None
-    names = config.joint_names
-
-    def figures(key: str) -> np.ndarray:
-        return np.array([model.joint_figure(name, key) for name in names])
-
     return ServoCascadeParams(
-        velocity_gain_nms_per_rad=figures("servo_velocity_gain_nms_per_rad"),
-        rotor_inertia_kg_m2=figures("rotor_inertia_kg_m2"),
-        viscous_friction_nms_per_rad=figures("motor_viscous_friction_nms_per_rad"),
+        velocity_gain_nms_per_rad=_figures(config, "servo_velocity_gain_nms_per_rad"),
+        rotor_inertia_kg_m2=_figures(config, "rotor_inertia_kg_m2"),
+        viscous_friction_nms_per_rad=_figures(config, "motor_viscous_friction_nms_per_rad"),
     )
 
 

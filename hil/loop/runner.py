@@ -372,7 +372,10 @@ class Loop:
 
     def _lqr_contact_table(self, duration_s: float) -> list[object]:
         """The LQR's contact on the experiment's own grid: the paper's switch at mid double
-        support needs the whole phase ahead (hil/loop/robot_model.py)."""
+        support needs the whole phase ahead (hil/loop/robot_model.py). A robot whose Sm is
+        constant has no contact: one entry."""
+        if not self.robot.rescheduled:
+            return self.robot.lqr_contacts([self.experiment.support(0.0)])
         ticks = max(1, math.ceil(duration_s / self.period - 1e-9))
         return self.robot.lqr_contacts(
             [self.experiment.support(i * self.period) for i in range(ticks)]

@@ -107,3 +107,26 @@ def test_the_slow_walks_contacts_switch_at_the_middle_of_each_double_support() -
     assert (timing.single_support_s, timing.double_support_s) == (0.8, 3.2)
     middle = [(end - start) // 2 * timeline.dt_s for start, end in runs[1:-1]]
     assert middle == pytest.approx([timing.double_support_s / 2] * len(middle))
+
+
+def test_on_the_wall_clock_a_finished_design_is_installed_at_the_next_tick() -> None:
+    import time
+
+    config = load_config(robot="dyros-jet")
+    robot = robot_model(config)
+    choice = ControllerChoice("gc+lqr", 0.2)
+    controller = build_controller(config, choice, PERIOD_S, robot, READY, LqrContact.BOTH_FEET)
+    recorder = _Recorder(controller)
+    scheduler = GainScheduler(robot, recorder, PERIOD_S, 0.1, threaded=True)  # type: ignore[arg-type]
+    try:
+        started = time.perf_counter()
+        tick = 0
+        while not recorder.installed and time.perf_counter() - started < 10.0:
+            recorder.tick = tick
+            scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
+            tick += 1
+            time.sleep(0.001)  # a tick never waits for the design
+    finally:
+        scheduler.close()
+    assert recorder.installed and recorder.installed[0][0] >= 1
+    assert scheduler.schedule.record()["tick_wait_max_s"] is None  # never waited

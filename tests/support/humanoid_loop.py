@@ -122,7 +122,7 @@ class LoopModes:
 
     def text(self) -> str:
         return (
-            f"{self.radius:.4f} ({self.radius_hz:.2f} Hz); oscillatory {self.oscillatory:.4f} "
+            f"{self.radius:.5f} ({self.radius_hz:.2f} Hz); oscillatory {self.oscillatory:.4f} "
             f"({self.oscillatory_hz:.2f} Hz)"
         )
 
