@@ -100,7 +100,7 @@ class ControllerParams:
         otherwise (`controller.lqr.servo_discretisation`).
     lqr_coupling: "full" (whole Sm, default), "diagonal" (the lab's: diagonal of Sm only) or
         "closed-chain" (whole Sm, on the motions a closed chain allows: double support; see
-        controller/lqr.py).
+        controller/closed_chain.py and controller/lqr_designs.py).
     link_velocity_cutoff_hz: None = plain backward difference (default), else a low pass.
     link_velocity_increment: "backward-difference" (default) or "zero" (the lab's); see
         controller/estimation.py.

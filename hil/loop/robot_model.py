@@ -29,7 +29,7 @@ class RobotModel(abc.ABC):
     gravity: GravityModel
     rescheduled: bool  # Sm changes with posture and support: the LQR gain is rescheduled
     # "diagonal" when Sm is diagonal: n 4-state designs give the same gain as one 4n-state
-    # design (controller.lqr), in milliseconds instead of a third of a second for 12 joints
+    # design (controller.lqr_designs), one batch of n small problems
     lqr_coupling: str = "full"
 
     @abc.abstractmethod
@@ -88,7 +88,7 @@ class HumanoidLegs(RobotModel):
         self.leg_model = LegModel(urdf_text)
         self.gravity = HumanoidLegGravity(self.leg_model, SupportState.DOUBLE)
         self._inertia = ContactProjectedInertia(self.leg_model)
-        # "closed-chain" designs on the whole Sm (controller/lqr.py); the others as named
+        # "closed-chain" designs on the whole Sm (controller/closed_chain.py); the others as named
         self._coupling = SmCoupling.FULL if coupling == "closed-chain" else SmCoupling(coupling)
         self.lqr_coupling = coupling
         self._contact_rule = SmContactRule(contact_rule)
