@@ -46,6 +46,11 @@ from controller.lqr import (
     LqrWeights,
     TrackingGain,
     design_continuous_tracking_lqr,
+)
+from controller.lqr_designs import (
+    SERVO_MODELS,
+    GainDesigner,
+    ServoModel,
     design_discrete_tracking_lqr,
 )
 from controller.model import (
@@ -54,6 +59,7 @@ from controller.model import (
     flexible_joint_state_space,
     single_link_sm,
 )
+from controller.servo_cascade import ServoCascadeParams
 
 __all__ = [
     "COMPOSITION_READINGS",
@@ -63,6 +69,7 @@ __all__ = [
     "LAB_Q_FILTER_POLE",
     "LINK_VELOCITY_INCREMENTS",
     "LQR_DESIGNS",
+    "SERVO_MODELS",
     "Composition",
     "CompositionReading",
     "ControlTerms",
@@ -75,6 +82,7 @@ __all__ = [
     "FlexibleJointStateEstimator",
     "GC_COMPLIANCES",
     "GcCompliance",
+    "GainDesigner",
     "GravityCompensator",
     "GravityModel",
     "JointController",
@@ -83,6 +91,8 @@ __all__ = [
     "LqrWeights",
     "NoGravity",
     "PendulumGravity",
+    "ServoCascadeParams",
+    "ServoModel",
     "TrackingGain",
     "joint_static_compliance",
     "servo_static_stiffness",

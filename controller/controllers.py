@@ -41,10 +41,15 @@ from controller.lqr import (
     LqrDesign,
     LqrWeights,
     TrackingGain,
-    design_discrete_tracking_lqr,
     servo_discretisation,
 )
+from controller.lqr_designs import (
+    KDIST_REFERENCES,
+    GainDesigner,
+    KdistReference,
+)
 from controller.model import FlexibleJointParams, per_joint_array, validate_sm
+from controller.servo_cascade import ServoCascadeParams
 
 LAB_KDIST_RAMP_S = 0.1  # the lab's compliant_tick: 0.1 s x 200 Hz = 20 ticks, cubic
 
@@ -97,13 +102,23 @@ class ControllerParams:
         otherwise (`controller.lqr.servo_discretisation`).
     lqr_coupling: "full" (whole Sm, default), "diagonal" (the lab's: diagonal of Sm only) or
         "closed-chain" (whole Sm, on the motions a closed chain allows: double support; see
-        controller/lqr.py).
+        controller/closed_chain.py and controller/lqr_designs.py).
     link_velocity_cutoff_hz: None = plain backward difference (default), else a low pass.
     link_velocity_increment: "backward-difference" (default) or "zero" (the lab's); see
         controller/estimation.py.
     gc_compliance_rad_per_nm: C of the gravity compensator, ug = C tau_g, per joint (scalar =
         all joints); None (default): the paper's K^-1 (controller/gravity.py: `GcCompliance`,
         `joint_static_compliance` for the whole joint's).
+    servo_cascade: the LQR's servo model: None for the paper's first-order (4), else the
+        actuator's position/velocity cascade with these figures (controller/servo_cascade.py;
+        needs discretisation "zoh" or "continuous-cost").
+    kdist_reference: what Kdist is measured against: "per-tick" (the lab's: the DOB term
+        Kdist q is added per tick whatever the LQR) or "paper-yield" (Kdist scaled per joint so
+        that the static yield Ke^-1 Kdist d is the paper's design's; controller/lqr_designs.py).
+    reference_feedforward: False (the paper's (21), which takes d theta_d/dt ~ 0: the goal
+        follows a moving reference only through the error's integral) or True (the reference's
+        increment is added to duc, so uc moves with theta_d and the LQR corrects about it: a
+        gentle integral can then follow a walk; docs/humanoid.md).
     """
 
     joints: FlexibleJointParams
@@ -119,6 +134,9 @@ class ControllerParams:
     link_velocity_cutoff_hz: float | None = None
     link_velocity_increment: LinkVelocityIncrement = "backward-difference"
     gc_compliance_rad_per_nm: np.ndarray | float | None = None
+    servo_cascade: ServoCascadeParams | None = None
+    kdist_reference: KdistReference = "per-tick"
+    reference_feedforward: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.joints, FlexibleJointParams):
@@ -182,6 +200,21 @@ class ControllerParams:
         if self.gc_compliance_rad_per_nm is None:
             return 1.0 / self.joints.stiffness_nm_per_rad
         return np.asarray(self.gc_compliance_rad_per_nm)
+        if self.kdist_reference not in KDIST_REFERENCES:
+            raise ValueError(
+                f"kdist_reference must be one of {KDIST_REFERENCES}, got {self.kdist_reference!r}"
+            )
+        cascade = self.servo_cascade
+        if cascade is not None:
+            if cascade.n_joints != self.n_joints:
+                raise ValueError(
+                    f"servo_cascade has {cascade.n_joints} joints, not {self.n_joints}"
+                )
+            if self.discretisation == "euler":
+                raise ValueError(
+                    "the servo cascade cannot be designed by forward Euler (its fast pole lies "
+                    "beyond -2/dt): use discretisation 'zoh' or 'continuous-cost'"
+                )
 
     @property
     def n_joints(self) -> int:
@@ -201,11 +234,23 @@ class ControllerParams:
         """The paper's K = 2000, D = 100, Kp = 10, Q/R "10 and 1"; other fields as given."""
         return cls(joints=FlexibleJointParams.uniform(n_joints), **overrides)  # type: ignore[arg-type]
 
-    def design_gain(self, sm: np.ndarray, dt_s: float) -> TrackingGain:
-        """The discrete LQR gain for this Sm (a few ms for 12 joints; not for every tick)."""
-        return design_discrete_tracking_lqr(
-            self.joints, sm, dt_s, self.lqr_weights, self.discretisation, self.lqr_coupling
+    def gain_designer(self, dt_s: float) -> GainDesigner:
+        """A designer for this controller's LQR (it keeps its last coupled solution to
+        warm-start the next; controller/lqr_designs.py)."""
+        return GainDesigner(
+            self.joints,
+            dt_s,
+            self.lqr_weights,
+            self.discretisation,
+            self.lqr_coupling,
+            self.servo_cascade,
+            self.kdist_reference,
         )
+
+    def design_gain(self, sm: np.ndarray, dt_s: float) -> TrackingGain:
+        """The discrete LQR gain for this Sm, from scratch (milliseconds for 12 joints: not
+        for every tick)."""
+        return self.gain_designer(dt_s).design(validate_sm(sm, self.n_joints))
 
 
 @dataclass(frozen=True)
@@ -419,8 +464,10 @@ class _LqrController(JointController):
             None if integral_time is None else min(1.0, dt_s / integral_time),
         )
         self._error = np.zeros(n)
+        self._reference = np.zeros(n)  # the last tick's, for the reference feed-forward
         self._increment = np.zeros(n)
         self._scratch = np.zeros(n)
+        self._dob_scaled = np.zeros(n)
         self._no_dob = np.zeros(n)
 
     @property
@@ -456,6 +503,7 @@ class _LqrController(JointController):
         if self._dob is not None:
             self._dob.reset(motor)
         self._composition.reset(goal, self._compensator.input_rad(reference))
+        self._reference[:] = reference
 
     def _resync(self, motor: np.ndarray, link: np.ndarray) -> None:
         self._estimator.resync(motor, link)
@@ -469,10 +517,21 @@ class _LqrController(JointController):
         np.matmul(self._gain.error_gain, self._error, out=self._increment)
         np.matmul(self._gain.state_increment_gain, self._estimator.increment, out=self._scratch)
         self._increment += self._scratch
+        velocity_gain = self._gain.motor_velocity_increment_gain
+        if velocity_gain is not None:
+            np.matmul(velocity_gain, self._estimator.motor_velocity_increment, out=self._scratch)
+            self._increment += self._scratch
         np.negative(self._increment, out=self._increment)
+        if self.params.reference_feedforward:  # uc moves with theta_d (d theta_d added)
+            self._increment += reference
+            self._increment -= self._reference
+        self._reference[:] = reference
         if self._dob is not None:
             # compares against the goal sent last tick (composition.u after notify_applied)
             dob_term = self._dob.update(motor, self._composition.u)
+            scale = self._gain.dob_gain_scale
+            if scale is not None:
+                dob_term = np.multiply(dob_term, scale, out=self._dob_scaled)
         else:
             dob_term = self._no_dob
         return self._composition.compose(

@@ -99,6 +99,8 @@ class FlexibleJointStateEstimator:
         self._previous_state = np.zeros(3 * n_joints)
         self._increment = np.zeros(3 * n_joints)
         self._link_step = np.zeros(n_joints)
+        self._motor_velocity = np.zeros(n_joints)
+        self._motor_velocity_increment = np.zeros(n_joints)
 
     @property
     def state(self) -> np.ndarray:
@@ -107,6 +109,13 @@ class FlexibleJointStateEstimator:
     @property
     def increment(self) -> np.ndarray:
         return self._increment
+
+    @property
+    def motor_velocity_increment(self) -> np.ndarray:
+        """d omega_m(k) = omega_m(k) - omega_m(k-1), omega_m(k) = (theta_m(k) - theta_m(k-1)) / dt:
+        the motor velocity's increment, for a design whose servo model has the motor velocity as
+        a state (`controller.servo_cascade`)."""
+        return self._motor_velocity_increment
 
     @property
     def link_velocity_rad_s(self) -> np.ndarray:
@@ -126,6 +135,8 @@ class FlexibleJointStateEstimator:
         self._state[2 * n :] = 0.0
         self._previous_state[:] = self._state
         self._increment[:] = 0.0
+        self._motor_velocity[:] = 0.0
+        self._motor_velocity_increment[:] = 0.0
 
     def resync(self, motor_angle_rad: np.ndarray, link_angle_rad: np.ndarray) -> None:
         """After a gap in the samples (a skipped tick, a failed read): take these angles as the
@@ -147,6 +158,14 @@ class FlexibleJointStateEstimator:
         self._state[:n] = motor_angle_rad
         self._state[n : 2 * n] = link_angle_rad
         np.subtract(self._state, self._previous_state, out=self._increment)
+        # motor velocity by the difference of the motor encoder, and its increment
+        self._motor_velocity_increment[:] = self._motor_velocity
+        np.multiply(self._increment[:n], 1.0 / self.dt_s, out=self._motor_velocity)
+        np.subtract(
+            self._motor_velocity,
+            self._motor_velocity_increment,
+            out=self._motor_velocity_increment,
+        )
         if self._zero_velocity_increment:
             self._increment[2 * n :] = 0.0
         return self._state

@@ -61,25 +61,9 @@ Why not the continuous gain itself at 200 Hz: its fastest closed-loop pole lies 
 duc(k) = dt * duc/dt it is unstable (spectral radius 2.99 with Qx = I, 13.0 with Q = 10 I on all
 states, tests/controller/test_closed_loop.py). The continuous design stays for analysis.
 
-Closed kinematic chains (coupling "closed-chain"). With both feet on the ground Sm of (19) is
-singular: DYROS-JET's legs have 18 velocities and 12 contact constraints, so Sm (12 x 12) has
-rank 6 (walking-ready posture: eigenvalues 3.33, 2.38, 1.69, 1.50, 0.101, 0.038 and six zeros).
-In its null space no joint torque moves a link; there (20) carries link states without dynamics
-and the augmented error of (21) is an integrator no input reaches, so "full" has no stabilising
-DARE. "diagonal" (the lab's) runs anyway, and on the coupled plant it (a) integrates whatever
-part of the error lies in that null space (encoder offsets, contact compliance, the reference's
-closure) into goals that ramp while the links stay (Jordan blocks at z = 1: internal forces
-grow), and (b) designs each joint on 1 / Sm_ii, the inertia it would drive if every other joint
-were limp; in the chain the others hold, and the sagittal sway mode is unstable (z = 1.0043 at
-3.4 Hz with the paper's servo model; tests/controller/test_lqr_closed_chain.py).
-"closed-chain" designs on the chain's own coordinates: V (n x r) an orthonormal basis of the
-range of Sm (`motion_subspace`), theta_j = V xi, state [theta_m (n); xi (r); dxi/dt (r)]
-(`closed_chain_state_space`, exact: that subspace is invariant under (20)), error V'e. For every
-motion the chain allows, xi'xi = theta_j'theta_j, so the cost is the paper's (22) on the motions
-the robot can make; V'e = 0 is reachable (the link goes to the closure-consistent posture
-nearest to the reference), the rest of the error is left to the springs. The gain maps back to
-[e; dx] as n x 4n, error gain K_e V'. With a nonsingular Sm (one foot, the testbed) it is the
-"full" design.
+Designs on other models (the closed chain of two feet on the ground, the servo's own cascade,
+the lab's per-joint problems solved as one batch) are in `controller.lqr_designs`; the Riccati
+solvers in `controller.riccati`.
 
 Weights. The paper (Sec. IV-A): "Q and R ... are the diagonal matrix of 10 and 1". We read it
 as the lab's code does: Qe = 10 I on the error, Qx = 1 I on the state increments, R = 1 I
@@ -102,7 +86,13 @@ from controller.model import (
     StateSpace,
     discretise,
     flexible_joint_state_space,
-    validate_sm,
+)
+from controller.riccati import (
+    LqrSolution,
+    check_lqr_arguments,
+    continuous_lqr,
+    discrete_lqr,
+    discrete_lqr_batch,
 )
 
 Coupling = Literal["full", "diagonal", "closed-chain"]
@@ -161,86 +151,6 @@ class LqrWeights:
 
 
 @dataclass(frozen=True)
-class LqrSolution:
-    """gain K, Riccati solution S (or P) and the eigenvalues of the designed closed loop."""
-
-    gain: np.ndarray
-    riccati: np.ndarray
-    closed_loop_eigenvalues: np.ndarray
-
-
-def _check_lqr_arguments(
-    a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray | None = None
-) -> None:
-    """Shapes and definiteness, as python-control's lqr/dlqr check them."""
-    if a.ndim != 2 or a.shape[0] != a.shape[1]:
-        raise ValueError(f"A must be square, got shape {a.shape}")
-    n_states = a.shape[0]
-    if b.ndim != 2 or b.shape[0] != n_states:
-        raise ValueError(f"B must have {n_states} rows (as A), got shape {b.shape}")
-    n_inputs = b.shape[1]
-    if q.shape != (n_states, n_states):
-        raise ValueError(f"Q must be {n_states} x {n_states}, got {q.shape}")
-    if r.shape != (n_inputs, n_inputs):
-        raise ValueError(f"R must be {n_inputs} x {n_inputs}, got {r.shape}")
-    for name, matrix in (("A", a), ("B", b), ("Q", q), ("R", r)):
-        if not np.all(np.isfinite(matrix)):
-            raise ValueError(f"{name} must be finite")
-    if not np.allclose(q, q.T) or not np.allclose(r, r.T):
-        raise ValueError("Q and R must be symmetric")
-    q_scale = max(1.0, float(np.max(np.abs(q))))
-    if np.min(np.linalg.eigvalsh(q)) < -1e-12 * q_scale:
-        raise ValueError("Q must be positive semi-definite")
-    if np.min(np.linalg.eigvalsh(r)) <= 0:
-        raise ValueError("R must be positive definite")
-    if s is not None:
-        if s.shape != (n_states, n_inputs):
-            raise ValueError(f"the cross weight must be {n_states} x {n_inputs}, got {s.shape}")
-        joint = np.block([[q, s], [s.T, r]])
-        if np.min(np.linalg.eigvalsh(joint)) < -1e-12 * max(1.0, float(np.max(np.abs(joint)))):
-            raise ValueError("[[Q, N], [N', R]] must be positive semi-definite")
-
-
-def continuous_lqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> LqrSolution:
-    """(23)-(24): S from A'S + SA - S B R^-1 B'S + Q = 0, K = R^-1 B'S, eig(A - B K)."""
-    _check_lqr_arguments(a, b, q, r)
-    try:
-        riccati = scipy.linalg.solve_continuous_are(a, b, q, r)
-    except (np.linalg.LinAlgError, ValueError) as error:
-        raise ValueError(
-            f"no stabilising continuous Riccati solution ((A, B) not stabilisable or "
-            f"(A, Q) has unobservable modes on the imaginary axis): {error}"
-        ) from error
-    gain = np.linalg.solve(r, b.T @ riccati)
-    return LqrSolution(gain, riccati, np.linalg.eigvals(a - b @ gain))
-
-
-def discrete_lqr(
-    a: np.ndarray,
-    b: np.ndarray,
-    q: np.ndarray,
-    r: np.ndarray,
-    cross_weight: np.ndarray | None = None,
-) -> LqrSolution:
-    """Minimise sum x'Qx + 2 x'N u + u'Ru: P from
-    A'PA - P - (A'PB + N)(R + B'PB)^-1 (B'PA + N') + Q = 0, K = (R + B'PB)^-1 (B'PA + N'),
-    eig(A - B K). N = cross_weight (None: zero)."""
-    _check_lqr_arguments(a, b, q, r, cross_weight)
-    try:
-        riccati = scipy.linalg.solve_discrete_are(a, b, q, r, s=cross_weight)
-    except (np.linalg.LinAlgError, ValueError) as error:
-        raise ValueError(
-            f"no stabilising discrete Riccati solution ((A, B) not stabilisable or "
-            f"(A, Q) has unobservable modes on the unit circle): {error}"
-        ) from error
-    coupling = b.T @ riccati @ a
-    if cross_weight is not None:
-        coupling = coupling + cross_weight.T
-    gain = np.linalg.solve(r + b.T @ riccati @ b, coupling)
-    return LqrSolution(gain, riccati, np.linalg.eigvals(a - b @ gain))
-
-
-@dataclass(frozen=True)
 class SampledQuadraticCost:
     """A continuous system and cost sampled with the input held over each period dt:
     x(k+1) = phi x(k) + gamma w(k), and, exactly,
@@ -258,7 +168,7 @@ def sample_quadratic_cost(
 ) -> SampledQuadraticCost:
     """Van Loan's method (see the module docstring): one matrix exponential gives the sampled
     system and the exact integral of the cost over a period."""
-    _check_lqr_arguments(a, b, q, r)
+    check_lqr_arguments(a, b, q, r)
     if not (np.isfinite(dt_s) and dt_s > 0):
         raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
     n_states, n_inputs = b.shape
@@ -301,17 +211,24 @@ def augmented_discrete(
 
 @dataclass(frozen=True)
 class TrackingGain:
-    """duc(k) = -(error_gain e(k) + state_increment_gain dx(k)), per tick.
+    """duc(k) = -(error_gain e(k) + state_increment_gain dx(k) [+ K_w d omega_m(k)]), per tick.
 
     error_gain: n x n [rad of input per tick per rad of error]; state_increment_gain: n x 3n on
     dx = [d theta_m; d theta_j; d dtheta_j]. `spectral_radius`: of the designed nominal closed
     loop A_aug - B_aug K (NaN when the gain was not designed on a discrete model).
+    motor_velocity_increment_gain: K_w (n x n) on the increment of the motor velocity, for a
+        design on a servo model that has the motor velocity as a state (the H54 cascade,
+        `controller.servo_cascade`); None: the paper's model (4) has none.
+    dob_gain_scale: per joint, what the DOB's Kdist is multiplied by while this gain runs
+        ("paper-yield", see `controller.lqr_designs`); None: Kdist as given.
     """
 
     error_gain: np.ndarray
     state_increment_gain: np.ndarray
     dt_s: float
     spectral_radius: float
+    motor_velocity_increment_gain: np.ndarray | None = None
+    dob_gain_scale: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.error_gain.shape[0]
@@ -320,8 +237,15 @@ class TrackingGain:
                 f"error_gain must be n x n and state_increment_gain n x 3n, got "
                 f"{self.error_gain.shape} and {self.state_increment_gain.shape}"
             )
-        for gain in (self.error_gain, self.state_increment_gain):
-            gain.flags.writeable = False
+        velocity = self.motor_velocity_increment_gain
+        if velocity is not None and velocity.shape != (n, n):
+            raise ValueError(f"motor_velocity_increment_gain must be n x n, got {velocity.shape}")
+        scale = self.dob_gain_scale
+        if scale is not None and (scale.shape != (n,) or not np.all(np.isfinite(scale))):
+            raise ValueError(f"dob_gain_scale must be {n} finite factors, got {scale}")
+        for gain in (self.error_gain, self.state_increment_gain, velocity, scale):
+            if gain is not None:
+                gain.flags.writeable = False
 
     @property
     def n_joints(self) -> int:
@@ -369,23 +293,33 @@ def sample_continuous_gain(solution: LqrSolution, dt_s: float) -> TrackingGain:
     )
 
 
-def _design_discrete_coupled(
-    params: FlexibleJointParams,
-    sm: np.ndarray,
+@dataclass(frozen=True)
+class ModelDesign:
+    """One discrete tracking design on a continuous model (`design_on_model`).
+
+    gain: n_inputs x (n_errors + n_states) per tick on [e; dx]; spectral_radius: of the designed
+    loop A_aug - B_aug K; riccati: its Riccati solution."""
+
+    gain: np.ndarray
+    spectral_radius: float
+    riccati: np.ndarray
+
+
+def design_on_model(
+    continuous: StateSpace,
     dt_s: float,
     weights: LqrWeights,
     design: LqrDesign,
-    continuous: StateSpace | None = None,
-) -> tuple[np.ndarray, float]:
-    """Gain per tick on [e; dx] and the designed loop's spectral radius.
-
-    continuous: the model to design on (default (20) with this Sm); the closed-chain design
-    passes (20) restricted to the chain's motion subspace, with its own error and state sizes.
-    """
-    n = params.n_joints
-    if continuous is None:
-        continuous = flexible_joint_state_space(params, sm)
+    reference_solver: bool = False,
+) -> ModelDesign:
+    """The discrete derivative-form design (module docstring) on any continuous model
+    dx/dt = A x + B u, y = C x: errors e = y - y_d (rows of C), Q = blockdiag(Qe I, Qx I),
+    R = r I; solved by the doubling algorithm (`controller.riccati.discrete_lqr_batch`), or by
+    scipy's QZ solver with `reference_solver` (the product before; for checks and benches)."""
+    if design not in LQR_DESIGNS:
+        raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {design!r}")
     n_errors, n_states = continuous.c.shape
+    n_inputs = continuous.b.shape[1]
     q = np.diag(
         np.concatenate(
             [
@@ -394,142 +328,30 @@ def _design_discrete_coupled(
             ]
         )
     )
-    r = weights.input_increment_weight * np.eye(n)
+    r = weights.input_increment_weight * np.eye(n_inputs)
     if design == "continuous-cost":
         a_bar, b_bar = augmented_continuous(continuous.a, continuous.b, continuous.c)
         cost = sample_quadratic_cost(a_bar, b_bar, q, r, dt_s)
-        solution = discrete_lqr(
-            cost.phi, cost.gamma, cost.state_weight, cost.input_weight, cost.cross_weight
-        )
-        # w = duc/dt on [e; dx/dt]  ->  duc(k) = dt w = -(K_e dt) e - K_x dx(k)
-        gain = solution.gain.copy()
-        gain[:, :n_errors] *= dt_s
+        # the cross term folded into the state matrix: u = v - Rd^-1 N' x
+        fold = np.linalg.solve(cost.input_weight, cost.cross_weight.T)
+        a_aug = cost.phi - cost.gamma @ fold
+        b_aug = cost.gamma
+        q_aug = cost.state_weight - cost.cross_weight @ fold
+        q_aug = 0.5 * (q_aug + q_aug.T)
+        r_aug = cost.input_weight
     else:
         system = discretise(continuous, dt_s, servo_discretisation(design))
         a_aug, b_aug = augmented_discrete(system.a, system.b, system.c)
-        solution = discrete_lqr(a_aug, b_aug, q, r)
-        gain = solution.gain
-    return gain, float(np.max(np.abs(solution.closed_loop_eigenvalues)))
-
-
-# Eigenvalues of Sm below this fraction of its largest are the closed chain's constrained
-# directions (exactly zero in theory; ~1e-15 relative from the KKT inverse in practice, while
-# DYROS-JET's slowest free mode in double support is 0.038 / 3.3 ~ 1e-2 of the largest).
-MOTION_SUBSPACE_RTOL = 1e-8
-
-
-def motion_subspace(sm: np.ndarray, rtol: float = MOTION_SUBSPACE_RTOL) -> np.ndarray:
-    """Orthonormal basis V (n x r) of the range of Sm: the joint motions the chain allows.
-
-    Sm = S M^-1 (I - Pc) S^T of (19) maps joint torques to joint accelerations; with contacts
-    that close a chain (two feet on the ground) it is singular, and its range is the set of
-    joint velocities compatible with the contacts (S times the null space of Jc); its null
-    space holds the directions no joint torque can move (they only load the chain).
-    """
-    matrix = np.asarray(sm, dtype=float)
-    if not (np.isfinite(rtol) and 0 < rtol < 1):
-        raise ValueError(f"rtol must be in (0, 1), got {rtol}")
-    eigenvalues, vectors = np.linalg.eigh(0.5 * (matrix + matrix.T))
-    largest = float(np.max(eigenvalues))
-    if largest <= 0:
-        raise ValueError("Sm has no positive eigenvalue: no joint motion is possible")
-    if np.min(eigenvalues) < -rtol * largest:
-        raise ValueError(f"Sm must be positive semi-definite, got eigenvalue {eigenvalues.min()}")
-    return vectors[:, eigenvalues > rtol * largest]
-
-
-def closed_chain_state_space(
-    params: FlexibleJointParams, sm: np.ndarray, basis: np.ndarray
-) -> StateSpace:
-    """(20) on the chain's own coordinates: x_r = [theta_m (n); xi (r); dxi/dt (r)] with
-    theta_j = V xi (V = `basis`, orthonormal, spanning the range of Sm), y = xi.
-
-    The link states of (20) in the null space of Sm have no dynamics (their acceleration is
-    Sm tau = 0 whatever tau), so the subspace theta_j, dtheta_j in range(V) is invariant and
-    x = T x_r with T = blockdiag(I, V, V) gives A_r = T' A T, B_r = T' B, C_r = V' C T exactly.
-    """
-    full = flexible_joint_state_space(params, sm)
-    n = params.n_joints
-    rank = basis.shape[1]
-    transform = np.zeros((3 * n, n + 2 * rank))
-    transform[:n, :n] = np.eye(n)
-    transform[n : 2 * n, n : n + rank] = basis
-    transform[2 * n :, n + rank :] = basis
-    return StateSpace(
-        a=transform.T @ full.a @ transform,
-        b=transform.T @ full.b,
-        c=basis.T @ full.c @ transform,
-    )
-
-
-def _design_closed_chain(
-    params: FlexibleJointParams,
-    sm: np.ndarray,
-    dt_s: float,
-    weights: LqrWeights,
-    design: LqrDesign,
-) -> tuple[np.ndarray, float]:
-    """The coupled design on the motion subspace, mapped back to [e; dx] (n x 4n)."""
-    n = params.n_joints
-    basis = motion_subspace(sm)
-    rank = basis.shape[1]
-    reduced = closed_chain_state_space(params, sm, basis)
-    gain_r, radius = _design_discrete_coupled(params, sm, dt_s, weights, design, reduced)
-    # gain_r acts on [V'e (r); d theta_m (n); V' d theta_j (r); V' d dtheta_j (r)]
-    gain = np.zeros((n, 4 * n))
-    gain[:, :n] = gain_r[:, :rank] @ basis.T
-    gain[:, n : 2 * n] = gain_r[:, rank : rank + n]
-    gain[:, 2 * n : 3 * n] = gain_r[:, rank + n : 2 * rank + n] @ basis.T
-    gain[:, 3 * n :] = gain_r[:, 2 * rank + n :] @ basis.T
-    return gain, radius
-
-
-def design_discrete_tracking_lqr(
-    params: FlexibleJointParams,
-    sm: np.ndarray,
-    dt_s: float,
-    weights: LqrWeights | None = None,
-    method: LqrDesign = "zoh",
-    coupling: Coupling = "full",
-) -> TrackingGain:
-    """The gain the loop runs: the discrete derivative-form LQR at period dt_s.
-
-    method: "zoh" (exact sampling of (20) for a goal held over the tick, Q and R per tick;
-    default), "euler" (the lab's forward Euler, Q and R per tick; see
-    `controller.model.discretise` for where it breaks down) or "continuous-cost" (the paper's
-    cost (22) integrated over each tick; see the module docstring for what each weighs).
-    coupling: "full" solves one 4n-state problem with the whole Sm; "diagonal" keeps only the
-    diagonal of Sm (as the lab's code does), solves n independent 4-state problems and stacks
-    them (each gain block is then diagonal). With a diagonal Sm both give the same gain.
-    "closed-chain" solves the coupled problem on the motions the chain allows (the range of
-    Sm, rank r): state [V'e; d theta_m; V' d theta_j; V' d dtheta_j] (3r + n), see the
-    module docstring; with a nonsingular Sm it is the "full" design (same gain).
-    """
-    weights = weights if weights is not None else LqrWeights()
-    if method not in LQR_DESIGNS:
-        raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {method!r}")
-    n = params.n_joints
-    sm = validate_sm(sm, n)
-    if coupling == "full":
-        gain, radius = _design_discrete_coupled(params, sm, dt_s, weights, method)
-    elif coupling == "closed-chain":
-        gain, radius = _design_closed_chain(params, sm, dt_s, weights, method)
-    elif coupling == "diagonal":
-        gain = np.zeros((n, 4 * n))
-        radius = 0.0
-        for joint in range(n):
-            joint_gain, joint_radius = _design_discrete_coupled(
-                params.joint(joint), sm[joint : joint + 1, joint : joint + 1], dt_s, weights, method
-            )
-            # 1-joint gain is [e, theta_m, theta_j, dtheta_j]; place it in the stacked layout.
-            for block in range(4):
-                gain[joint, block * n + joint] = joint_gain[0, block]
-            radius = max(radius, joint_radius)
+        q_aug, r_aug, fold = q, r, None
+    if reference_solver:
+        solution = discrete_lqr(a_aug, b_aug, q_aug, r_aug)
     else:
-        raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
-    return TrackingGain(
-        error_gain=gain[:, :n].copy(),
-        state_increment_gain=gain[:, n:].copy(),
-        dt_s=float(dt_s),
-        spectral_radius=radius,
-    )
+        check_lqr_arguments(a_aug, b_aug, q_aug, r_aug)
+        batch = discrete_lqr_batch(a_aug[None], b_aug[None], q_aug[None], r_aug[None])
+        solution = LqrSolution(batch.gain[0], batch.riccati[0], batch.closed_loop_eigenvalues[0])
+    gain = solution.gain if fold is None else solution.gain + fold
+    if design == "continuous-cost":  # w = duc/dt on [e; dx/dt]: duc(k) = -(K_e dt) e - K_x dx(k)
+        gain = gain.copy()
+        gain[:, :n_errors] *= dt_s
+    radius = float(np.max(np.abs(solution.closed_loop_eigenvalues)))
+    return ModelDesign(gain, radius, solution.riccati)

@@ -23,7 +23,12 @@ from controller.humanoid.posture import (
     SolvedPosture,
     solve_posture,
 )
-from controller.humanoid.support import SupportState
+from controller.humanoid.support import (
+    LqrContact,
+    SmContactRule,
+    SupportState,
+    lqr_contact_schedule,
+)
 from controller.humanoid.zmp import FootWrench, NoSupportError, zmp_from_foot_wrenches
 
 __all__ = [
@@ -37,14 +42,17 @@ __all__ = [
     "FootWrench",
     "HumanoidLegGravity",
     "LegModel",
+    "LqrContact",
     "NoSupportError",
     "PostureError",
     "PostureTarget",
+    "SmContactRule",
     "SmCoupling",
     "SolvedPosture",
     "SupportForces",
     "SupportState",
     "UpperBodyPosture",
+    "lqr_contact_schedule",
     "solve_posture",
     "zmp_from_foot_wrenches",
 ]

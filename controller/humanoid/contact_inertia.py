@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from controller.humanoid.leg_model import N_LEG_JOINTS, LegModel
-from controller.humanoid.support import SupportState
+from controller.humanoid.support import LqrContact, SupportState
 
 
 class SmCoupling(enum.Enum):
@@ -48,7 +48,7 @@ class ContactProjectedInertia:
         self._data = model.model.createData()  # own data: may run in another thread than the GC
 
     def projected_inverse_inertia(
-        self, link_angle_rad: np.ndarray, support: SupportState
+        self, link_angle_rad: np.ndarray, support: SupportState | LqrContact
     ) -> np.ndarray:
         """M^-1 (I - Pc), (6 + 12) x (6 + 12), in pinocchio's velocity order."""
         lm = self.leg_model
@@ -60,7 +60,7 @@ class ContactProjectedInertia:
         kkt_inverse = pin.computeKKTContactDynamicMatrixInverse(model, data, q, contact)
         return kkt_inverse[: model.nv, : model.nv]
 
-    def contact_jacobian(self, support: SupportState) -> np.ndarray:
+    def contact_jacobian(self, support: SupportState | LqrContact) -> np.ndarray:
         """Jc: the support sole(s)' 6-D Jacobian(s), stacked (after computeJointJacobians)."""
         lm = self.leg_model
         return np.vstack(
@@ -68,17 +68,19 @@ class ContactProjectedInertia:
                 pin.getFrameJacobian(
                     lm.model, self._data, lm.sole_frame_ids[side], pin.ReferenceFrame.LOCAL
                 )
-                for side in SupportState(support).feet
+                for side in support.feet
             ]
         )
 
     def sm(
         self,
         link_angle_rad: np.ndarray,
-        support: SupportState,
+        support: SupportState | LqrContact,
         coupling: SmCoupling = SmCoupling.FULL,
     ) -> np.ndarray:
-        """Sm = S M^-1 (I - Pc) S^T for the 12 leg joints in the lab's order [1/(kg m^2)]."""
+        """Sm = S M^-1 (I - Pc) S^T for the 12 leg joints in the lab's order [1/(kg m^2)], the
+        soles of `support` (a support state or the LQR's contact, controller.humanoid.support)
+        held on the ground."""
         angles = np.asarray(link_angle_rad, dtype=float)
         if angles.shape != (N_LEG_JOINTS,):
             raise ValueError(f"link_angle_rad must have {N_LEG_JOINTS} entries, got {angles.shape}")

@@ -41,11 +41,11 @@ from hil.bench.common import (
     with_retries,
 )
 from hil.bench.machine import bench_cpu_stalls, bench_idle_sleeper, stall_counts_longer_than
+from hil.bench.reschedule import bench_gain_schedule, gain_schedule_lines
 from hil.bench.speed import bench_speed, speed_text
 from hil.config import Config, robot_of
 from hil.experiments import IMPACT, STAND, Experiment
 from hil.loop import (
-    HumanoidLegs,
     LockstepClock,
     LoopClock,
     RunRequest,
@@ -109,8 +109,8 @@ def bench_controllers(
         started = time.perf_counter()
         choice = ControllerChoice(name, kdist)
         if humanoid:
-            support = STAND.support(0.0)
-            controller = build_controller(base, choice, period_s, robot, posture, support)
+            contact = robot.lqr_contacts([STAND.support(0.0)])[0]
+            controller = build_controller(base, choice, period_s, robot, posture, contact)
         else:
             controller = build_controller(config_with_joints(base, n_joints), choice, period_s)
         build_s.append(time.perf_counter() - started)
@@ -148,32 +148,6 @@ def bench_controllers(
             }
         )
     return results
-
-
-def bench_gain_schedule(base: Config, designs: int = 20) -> dict[str, Any] | None:
-    """The humanoid's LQR rescheduling (off the 200 Hz path): Sm of (19) at a posture, and the
-    gain designed on it; None for a robot whose Sm is constant."""
-    robot = robot_model(base)
-    if not isinstance(robot, HumanoidLegs):
-        return None
-    posture = np.asarray(STAND.reference(0.0))
-    support = STAND.support(0.0)
-    choice = ControllerChoice(LOOP_CONTROLLER, base.controller.kdist)
-    controller = build_controller(base, choice, base.loop.period_s, robot, posture, support)
-    sm_s, design_s = np.empty(designs), np.empty(designs)
-    for k in range(designs):
-        started = time.perf_counter()
-        sm = robot.sm(posture + 0.001 * k, support)
-        sm_s[k] = time.perf_counter() - started
-        started = time.perf_counter()
-        controller.params.design_gain(sm, base.loop.period_s)  # type: ignore[attr-defined]
-        design_s[k] = time.perf_counter() - started
-    return {
-        "sm": dataclasses.asdict(Distribution.of(sm_s)),
-        "design": dataclasses.asdict(Distribution.of(design_s)),
-        "reschedule_period_s": base.model.gain_reschedule_period_s,
-        "sm_coupling": base.model.sm_coupling,
-    }
 
 
 class RecordingClock(LoopClock):
@@ -417,13 +391,7 @@ def loop_report_text(report: dict[str, Any]) -> str:
         )
     schedule = report.get("gain_schedule")
     if schedule:
-        lines += [
-            f"  LQR rescheduling, every {schedule['reschedule_period_s'] * 1e3:g} ms off the "
-            f"200 Hz path (Sm {schedule['sm_coupling']}), median / p99 / max [ms]: Sm of (19) "
-            + Distribution(**schedule["sm"]).text()
-            + ", gain design "
-            + Distribution(**schedule["design"]).text(),
-        ]
+        lines += gain_schedule_lines(schedule)
     lines += [
         "",
         "the tick on a real robot's wires (drivers/tick_budget.py, from the configuration):",

@@ -30,6 +30,8 @@ class JointModelSection(Section):
     position_gain_per_s: float | None = Field(None, gt=0)
     velocity_gain_nms_per_rad: float | None = Field(None, gt=0)
     velocity_integral_time_s: float | None = Field(None, gt=0)
+    rotor_inertia_kg_m2: float | None = Field(None, gt=0)
+    motor_viscous_friction_nms_per_rad: float | None = Field(None, ge=0)
 
 
 class ModelSection(Section):
@@ -43,7 +45,16 @@ class ModelSection(Section):
     off the 200 Hz path; `sm_coupling` "diagonal" (the lab's: one design per joint on Sm's
     diagonal), "full" (one design on the whole Sm; none exists in double support, where Sm is
     singular) or "closed-chain" (the whole Sm, designed on the motions the legs and the ground
-    allow: controller/lqr.py; docs/studies/lqr_standing/ says why).
+    allow: controller/closed_chain.py; docs/studies/lqr_standing/ says why).
+    `sm_contact`: which soles Sm holds on the ground: "both-feet" (both in double support) or
+    "support-foot" (Kim et al. Sec. III-C: one foot, the other from the middle of each double
+    support; `sm_standing_foot` when a run never leaves double support);
+    controller/humanoid/support.py. It is not the gravity compensator's weight split.
+    `servo_model`: the LQR's model of the actuator: "first-order" (the paper's (4) with
+    servo_gain_per_s) or "cascade" (the position gain servo_gain_per_s, the velocity loop
+    velocity_gain_nms_per_rad on the rotor's reflected inertia rotor_inertia_kg_m2, with
+    motor_viscous_friction_nms_per_rad: controller/servo_cascade.py; needs [controller]
+    discretization "zoh" or "continuous-cost").
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
 
     The position servo's cascade, as `hil identify` fits it (same keys and units, so that its
@@ -60,12 +71,17 @@ class ModelSection(Section):
     description: str | None = None
     sm_coupling: Literal["diagonal", "full", "closed-chain"] = "diagonal"
     gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
+    sm_contact: Literal["both-feet", "support-foot"] = "both-feet"
+    sm_standing_foot: Literal["left", "right"] = "left"
+    servo_model: Literal["first-order", "cascade"] = "first-order"
     stiffness_nm_per_rad: float = Field(2000.0, gt=0)
     damping_nms_per_rad: float = Field(100.0, ge=0)
     servo_gain_per_s: float = Field(10.0, gt=0)
     position_gain_per_s: float | None = Field(None, gt=0)  # None: servo_gain_per_s
     velocity_gain_nms_per_rad: float = Field(78.5, gt=0)
     velocity_integral_time_s: float = Field(15.0, gt=0)
+    rotor_inertia_kg_m2: float = Field(0.25, gt=0)  # the H54's rotor, reflected to the output
+    motor_viscous_friction_nms_per_rad: float = Field(1.14, ge=0)  # its gearbox, viscous part
     link_inertia_kg_m2: float = Field(0.376, gt=0)
     gravity_moment_kg_m: float = Field(0.63, ge=0)
     joint: dict[str, JointModelSection] = Field(default_factory=dict)
@@ -101,6 +117,8 @@ class ControllerSection(Section):
     composition: str = "accumulated"  # the reading of (25)
     dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
     discretization: str = "euler"  # the LQR design
+    kdist_reference: Literal["per-tick", "paper-yield"] = "per-tick"  # what Kdist yields against
+    reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments
     link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")

@@ -291,6 +291,12 @@ class ConfigFile(Section):
         unknown = sorted(set(self.model.joint) - {j.name for j in self.joints})
         if unknown:
             raise ValueError(f"[model.joint] names joints that do not exist: {unknown}")
+        if self.model.servo_model == "cascade" and self.controller.discretization == "euler":
+            raise ValueError(
+                "[model] servo_model = 'cascade' with [controller] discretization = 'euler': "
+                "the cascade's fast pole lies beyond forward Euler's reach at this rate; use "
+                "'zoh' or 'continuous-cost'"
+            )
         return self
 
     def chain_of(self, joint: JointSection) -> str:

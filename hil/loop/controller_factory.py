@@ -10,6 +10,7 @@ from controller import (
     GcCompliance,
     JointController,
     LqrWeights,
+    ServoCascadeParams,
     joint_static_compliance,
     make_controller,
 )
@@ -47,17 +48,29 @@ def gc_compliance(config: Config, reading: GcCompliance | None = None) -> np.nda
     )
 
 
+def servo_cascade(config: Config) -> ServoCascadeParams | None:
+    """The LQR's servo model from [model]: None for the paper's first-order (4), else the
+    cascade's figures per joint."""
+    if config.model.servo_model != "cascade":
+        return None
+    return ServoCascadeParams(
+        velocity_gain_nms_per_rad=model_figures(config, "velocity_gain_nms_per_rad"),
+        rotor_inertia_kg_m2=model_figures(config, "rotor_inertia_kg_m2"),
+        viscous_friction_nms_per_rad=model_figures(config, "motor_viscous_friction_nms_per_rad"),
+    )
+
+
 def build_controller(
     config: Config,
     choice: ControllerChoice,
     period_s: float,
     robot: RobotModel | None = None,
     start_rad: np.ndarray | None = None,
-    support: object = None,
+    contact: object = None,
 ) -> JointController:
     """The chosen controller for the configured robot (hil/loop/robot_model.py), its LQR
     designed on the Sm of the start posture `start_rad` (the experiment's first reference) and
-    support state."""
+    the LQR's contact there (`RobotModel.lqr_contacts`)."""
     section = config.controller
     n = len(config.joints)
     robot = robot or robot_model(config)
@@ -87,6 +100,9 @@ def build_controller(
         link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
         lqr_coupling=robot.lqr_coupling,  # type: ignore[arg-type]
         gc_compliance_rad_per_nm=gc_compliance(config),
+        servo_cascade=servo_cascade(config),
+        kdist_reference=section.kdist_reference,
+        reference_feedforward=section.reference_feedforward,
     )
-    sm = robot.sm(start, support)
+    sm = robot.sm(start, contact)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

@@ -5,8 +5,12 @@ single_link  every joint drives its own link in a vertical plane (the 1-DoF test
 dyros-jet    the humanoid's 12 leg joints on the whole robot (pinocchio, from the URDF):
              the gravity compensator (5)-(8) for the support state, and the
              contact-projected Sm = S M^-1 (I - Pc) S^T of (19), which changes with the
-             posture and the support foot: the loop reschedules the LQR gain from it
-             (hil/loop/gain_scheduler.py)
+             posture and the LQR's contact (`[model] sm_contact`: both feet in double support,
+             or the paper's one support foot switched at mid double support): the loop
+             reschedules the LQR gain from it (hil/loop/gain_scheduler.py)
+
+The LQR's contact is not the gravity compensator's support state: `lqr_contacts` maps a run's
+per-tick support states to the contacts Sm is computed for (controller/humanoid/support.py).
 """
 
 from __future__ import annotations
@@ -25,15 +29,19 @@ class RobotModel(abc.ABC):
     gravity: GravityModel
     rescheduled: bool  # Sm changes with posture and support: the LQR gain is rescheduled
     # "diagonal" when Sm is diagonal: n 4-state designs give the same gain as one 4n-state
-    # design (controller.lqr), in milliseconds instead of a third of a second for 12 joints
+    # design (controller.lqr_designs), one batch of n small problems
     lqr_coupling: str = "full"
 
     @abc.abstractmethod
-    def sm(self, link_angle_rad: np.ndarray, support: object) -> np.ndarray:
-        """Sm of (19) at these link angles, for this support state."""
+    def sm(self, link_angle_rad: np.ndarray, contact: object) -> np.ndarray:
+        """Sm of (19) at these link angles, for this LQR contact (`lqr_contacts`)."""
 
     def set_support(self, support: object) -> None:  # noqa: B027 - only the humanoid has one
         """The support state the gravity compensator splits the weight by."""
+
+    def lqr_contacts(self, supports: list[object]) -> list[object]:
+        """The LQR's contact per tick for a run's support state per tick (no feet: None)."""
+        return [None] * len(supports)
 
 
 class SingleLinks(RobotModel):
@@ -45,19 +53,28 @@ class SingleLinks(RobotModel):
         # m*r is all the pendulum model needs: pass it as a mass at unit distance
         self.gravity = PendulumGravity(np.full(n_joints, gravity_moment_kg_m), np.ones(n_joints))
 
-    def sm(self, link_angle_rad: np.ndarray, support: object) -> np.ndarray:
+    def sm(self, link_angle_rad: np.ndarray, contact: object) -> np.ndarray:
         return self._sm
 
 
 class HumanoidLegs(RobotModel):
     rescheduled = True
 
-    def __init__(self, urdf_text: str, coupling: str, joint_names: tuple[str, ...]) -> None:
+    def __init__(
+        self,
+        urdf_text: str,
+        coupling: str,
+        joint_names: tuple[str, ...],
+        contact_rule: str = "both-feet",
+        standing_foot: str = "left",
+    ) -> None:
         from controller.humanoid import (  # pinocchio: only when a humanoid is configured
             LEG_JOINT_NAMES,
             ContactProjectedInertia,
             HumanoidLegGravity,
             LegModel,
+            LqrContact,
+            SmContactRule,
             SmCoupling,
             SupportState,
         )
@@ -71,19 +88,34 @@ class HumanoidLegs(RobotModel):
         self.leg_model = LegModel(urdf_text)
         self.gravity = HumanoidLegGravity(self.leg_model, SupportState.DOUBLE)
         self._inertia = ContactProjectedInertia(self.leg_model)
-        # "closed-chain" designs on the whole Sm (controller/lqr.py); the others as named
+        # "closed-chain" designs on the whole Sm (controller/closed_chain.py); the others as named
         self._coupling = SmCoupling.FULL if coupling == "closed-chain" else SmCoupling(coupling)
         self.lqr_coupling = coupling
+        self._contact_rule = SmContactRule(contact_rule)
+        self._standing_foot = LqrContact(f"{standing_foot}-foot")
+        self._contact_type = LqrContact
 
-    def sm(self, link_angle_rad: np.ndarray, support: object) -> np.ndarray:
-        return self._inertia.sm(link_angle_rad, self.support_type(support), self._coupling)
+    def sm(self, link_angle_rad: np.ndarray, contact: object) -> np.ndarray:
+        return self._inertia.sm(link_angle_rad, self._contact_type(contact), self._coupling)
 
     def set_support(self, support: object) -> None:
         self.gravity.set_support(self.support_type(support))
+
+    def lqr_contacts(self, supports: list[object]) -> list[object]:
+        from controller.humanoid import lqr_contact_schedule
+
+        states = [self.support_type(s) for s in supports]
+        return list(lqr_contact_schedule(states, self._contact_rule, self._standing_foot))
 
 
 def robot_model(config: Config) -> RobotModel:
     model = config.model
     if model.robot == "dyros-jet":
-        return HumanoidLegs(robot_description_text(config), model.sm_coupling, config.joint_names)
+        return HumanoidLegs(
+            robot_description_text(config),
+            model.sm_coupling,
+            config.joint_names,
+            model.sm_contact,
+            model.sm_standing_foot,
+        )
     return SingleLinks(len(config.joints), model.link_inertia_kg_m2, model.gravity_moment_kg_m)

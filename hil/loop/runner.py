@@ -119,13 +119,14 @@ class Loop:
         low, high = self.experiment.reference_range(n)
         self.supervisor.check_reference(low, high)
         self.robot = robot_model(config)
+        self._lqr_contacts = self._lqr_contact_table(request.run_duration_s)
         self.controller: JointController = build_controller(
             config,
             request.choice,
             self.period,
             self.robot,
             np.broadcast_to(self.experiment.reference(0.0), (n,)),
-            self.experiment.support(0.0),
+            self._lqr_contacts[0],
         )
         self.scheduler: GainScheduler | None = None
         if self.robot.rescheduled and request.choice.kind.has_lqr:
@@ -391,20 +392,37 @@ class Loop:
         return controller.step(sample.motor_angle_rad, link, reference), reference
 
     def _schedule(self, k: int, link: np.ndarray) -> None:
-        """What the experiment's phase sets: the support state (gravity compensator, Sm and the
-        LQR gain), and a Kdist schedule (the controller ramps between values)."""
+        """What the experiment's phase sets: the support state (gravity compensator), the LQR's
+        contact (Sm and the gain), and a Kdist schedule (the controller ramps between values)."""
         time_s = self.timeline.experiment_time_s(k)
         support = self.experiment.support(time_s)
         if support != self._support:
             self.robot.set_support(support)
             self._support = support
         if self.scheduler is not None:
-            self.scheduler.update(k, link, support)
+            lead = self.scheduler.lead_ticks
+            self.scheduler.update(k, link, self._lqr_contact(k), self._lqr_contact(k + lead))
         if self.request.choice.kind.has_dob:
             kdist = self.experiment.kdist_at(time_s, self.request.choice.kdist)
             if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):
                 self.controller.set_kdist(kdist)
                 self._kdist = np.array(kdist, dtype=float)
+
+    def _lqr_contact_table(self, duration_s: float) -> list[object]:
+        """The LQR's contact on the experiment's own grid: the paper's switch at mid double
+        support needs the whole phase ahead (hil/loop/robot_model.py). A robot whose Sm is
+        constant has no contact: one entry."""
+        if not self.robot.rescheduled:
+            return self.robot.lqr_contacts([self.experiment.support(0.0)])
+        ticks = max(1, math.ceil(duration_s / self.period - 1e-9))
+        return self.robot.lqr_contacts(
+            [self.experiment.support(i * self.period) for i in range(ticks)]
+        )
+
+    def _lqr_contact(self, k: int) -> object:
+        """The LQR's contact at tick k (the experiment's grid, held at its ends)."""
+        index = round(self.timeline.experiment_time_s(k) / self.period)
+        return self._lqr_contacts[min(max(index, 0), len(self._lqr_contacts) - 1)]
 
     def _open_loop_goal(self, k: int) -> np.ndarray:
         """The goal in force when the experiment began plus its offset for tick k."""

@@ -92,6 +92,21 @@ class HumanoidPlant:
 
     # --- state (copies, lab leg order) --------------------------------------------------------
     @property
+    def motor_dof_indices(self) -> np.ndarray:
+        """MuJoCo's dof index of each joint's motor hinge (lab order)."""
+        return self._motor_dof.copy()
+
+    @property
+    def gear_dof_indices(self) -> np.ndarray:
+        """MuJoCo's dof index of each joint's gear hinge (the deflection)."""
+        return self._gear_dof.copy()
+
+    @property
+    def actuator_indices(self) -> np.ndarray:
+        """MuJoCo's actuator index of each joint's servo."""
+        return self._actuator.copy()
+
+    @property
     def physics_timestep_s(self) -> float:
         return float(self.model.opt.timestep)
 

@@ -10,9 +10,9 @@ from controller.lqr import (
     augmented_discrete,
     continuous_lqr,
     design_continuous_tracking_lqr,
-    design_discrete_tracking_lqr,
     discrete_lqr,
 )
+from controller.lqr_designs import design_discrete_tracking_lqr
 from controller.model import (
     FlexibleJointParams,
     discretise,

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from controller import FlexibleJointParams, LqrWeights, design_discrete_tracking_lqr, discretise
-from controller.lqr import motion_subspace
+from controller.closed_chain import motion_subspace
 from controller.model import flexible_joint_state_space, single_link_sm
 
 DT_S = 0.005
@@ -171,3 +171,42 @@ def test_double_support_designs_on_the_coupled_plant(double_support_sm: np.ndarr
     # no integral action on what the chain cannot move
     null = np.linalg.eigh(sm)[1][:, :6]
     assert np.abs(chain.error_gain @ null).max() < 1e-9
+
+
+def test_the_cascade_on_the_closed_chain(double_support_sm: np.ndarray) -> None:
+    """The closed chain with the servo cascade: no error gain (nor link gain) in Sm's null space;
+    the doubling solver gives scipy's gain; a design depends on its Sm alone."""
+    from controller import GainDesigner, ServoCascadeParams
+
+    sm = double_support_sm
+    params = _humanoid_params()
+    servo = ServoCascadeParams.h54(12)
+    weights = LqrWeights(input_increment_weight=1e5)
+    gain = design_discrete_tracking_lqr(params, sm, DT_S, weights, "zoh", "closed-chain", servo)
+    null = np.linalg.eigh(sm)[1][:, :6]
+    assert np.abs(gain.error_gain @ null).max() < 1e-9
+    assert np.abs(gain.state_increment_gain[:, 12:] @ np.kron(np.eye(2), null)).max() < 1e-9
+    assert gain.motor_velocity_increment_gain is not None
+    assert gain.spectral_radius < 1
+    reference = GainDesigner(
+        params, DT_S, weights, "zoh", "closed-chain", servo, reference_solver=True
+    ).design(sm)
+    assert np.allclose(gain.stacked, reference.stacked, rtol=1e-8, atol=1e-12)
+    # the design depends on its Sm alone: a designer that designed another posture first
+    # gives the same gain as one that did not
+    from controller.humanoid import (
+        WALKING_READY_LEG_ANGLES_RAD,
+        ContactProjectedInertia,
+        LegModel,
+        SupportState,
+    )
+
+    posture = np.array(WALKING_READY_LEG_ANGLES_RAD) + 0.002  # 2 mrad on every joint
+    nearby = ContactProjectedInertia(LegModel(URDF.read_text())).sm(posture, SupportState.DOUBLE)
+    designer = GainDesigner(params, DT_S, weights, "zoh", "closed-chain", servo)
+    designer.design(sm)
+    again = designer.design(nearby)
+    fresh = design_discrete_tracking_lqr(
+        params, nearby, DT_S, weights, "zoh", "closed-chain", servo
+    )
+    assert np.array_equal(again.stacked, fresh.stacked)

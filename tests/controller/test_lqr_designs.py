@@ -16,9 +16,9 @@ from controller import FlexibleJointParams, LqrWeights, single_link_sm
 from controller.lqr import (
     augmented_continuous,
     design_continuous_tracking_lqr,
-    design_discrete_tracking_lqr,
     sample_quadratic_cost,
 )
+from controller.lqr_designs import design_discrete_tracking_lqr
 from controller.model import flexible_joint_state_space
 
 PAPER = FlexibleJointParams.uniform(1)

@@ -59,3 +59,27 @@ def test_an_experiment_refuses_another_robots_configuration(tmp_path: Path, caps
     assert code == 2
     assert "is for the robot 'dyros-jet'" in capsys.readouterr().err
     assert not list(tmp_path.glob("*/log.csv"))
+
+
+def test_the_lqr_stands_the_robot_through_the_emulated_buses(tmp_path: Path) -> None:
+    """The configuration's LQR (the closed chain on the servo cascade) with the DOB at the
+    lab's Kdist: no safety stop, the pelvis upright, the ZMP in the middle of the feet, and the
+    gain rescheduled off the tick (docs/humanoid.md)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(
+            ["run", "stand", "--robot", "dyros-jet", "--controller", "gc+lqr+dob"]
+            + ["--kdist", "0.2", "--duration", "3", "--json", "--no-plots", "--no-mcap"]
+            + ["--out", str(tmp_path)]
+        )
+    assert code == 0, out.getvalue()
+    metrics = json.loads(out.getvalue().strip().splitlines()[-1])
+    assert metrics["termination"] == "completed"
+    assert metrics["fell"] is False
+    assert metrics["pelvis_tilt_rad"] < 0.03
+    assert metrics["zmp_max_error_m"] < 0.03
+    (run_dir,) = tmp_path.iterdir()
+    run = load_run(run_dir, code)
+    assert_log_complete(run)
+    assert not run.trips()
+    assert run.summary["gain_schedule"]["designs"] >= 25  # every 0.1 s

@@ -9,7 +9,7 @@ from controller import (
     discretise,
     flexible_joint_state_space,
 )
-from controller.lqr import design_discrete_tracking_lqr
+from controller.lqr_designs import design_discrete_tracking_lqr
 from controller.humanoid import (
     LEG_JOINT_NAMES,
     ContactProjectedInertia,
