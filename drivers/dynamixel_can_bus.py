@@ -125,6 +125,12 @@ class DynamixelCanBusConfig:
     chains: tuple[DynamixelChainConfig, ...]
     can_channels: tuple[CanChannelConfig, ...]
     link_timeout_s: float = 0.002  # how long a tick waits for the TPDOs after SYNC
+    # links_after_actuators: collect the actuators' replies first, then the link encoders'.
+    # For a lock-step emulator, which sends a SYNC's TPDOs before it answers the sync read:
+    # once the actuators answered, a TPDO not there yet never comes, so a dead encoder costs
+    # link_timeout_s (small) instead of a wait sized for a slow emulator. On hardware the
+    # TPDOs come first (within ~0.3 ms of the SYNC) and are collected first.
+    links_after_actuators: bool = False
     allow_torque_off: bool = False  # may open() turn torque off to rewrite EEPROM items?
     # read_only: open() writes nothing to the actuators (no EEPROM or RAM configuration) and
     # every command raises BusError; the link encoders are still brought up (NMT, TPDO
@@ -218,11 +224,16 @@ class DynamixelCanBus(JointBus):
 
     def finish_read(self) -> JointSample:
         """The link encoders' answers first (they come within a few hundred microseconds of
-        the SYNC), then the Dynamixel replies (held ~1 ms longer by the USB adapter)."""
+        the SYNC), then the Dynamixel replies (held ~1 ms longer by the USB adapter); the other
+        way round with `links_after_actuators` (a lock-step emulator)."""
         sample = JointSample.empty(self.n_joints)
         try:
-            links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
-            motors = [chain.receive_state() for chain in self.chains]
+            if self.config.links_after_actuators:
+                motors = [chain.receive_state() for chain in self.chains]
+                links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
+            else:
+                links = [reader.collect(self.config.link_timeout_s) for reader in self.readers]
+                motors = [chain.receive_state() for chain in self.chains]
         except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
             raise BusError(f"the bus failed while reading: {exc}") from exc
         sample.timestamp_s = links[0].sync_time_s

@@ -29,7 +29,11 @@ from hil.config import Config, ConfigError, JointSection
 from hil.wiring.connection import Connection
 
 LOCKSTEP_LATENCY_TIMER_MS = 50.0
-LOCKSTEP_LINK_TIMEOUT_S = 0.2
+# Lock-step: the emulator sends a SYNC's TPDOs before it answers the sync read, and the bus
+# collects the actuators first (`links_after_actuators`): the TPDOs are in the port's buffer
+# by then, and one that is not never comes (a dead encoder costs this, not a slow emulator's
+# allowance: 0.2 s a tick before).
+LOCKSTEP_LINK_TIMEOUT_S = 0.005
 # An emulator on a shared 2-core machine answers a fresh request 3-7 ms late now and then (a
 # process scheduling artefact, not a property of the bus): with the hardware's 1 ms latency
 # setting (~4 ms reply timeout) such replies would count as lost. Real-time emulation keeps the
@@ -131,6 +135,7 @@ def bus_config(
             if connection.lockstep
             else config.loop.bus_read_timeout_ms / 1000.0
         ),
+        links_after_actuators=connection.lockstep,
         read_only=read_only,
     )
 
