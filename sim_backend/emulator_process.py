@@ -46,7 +46,8 @@ def emulator_process(
 ) -> Iterator[EmulatorProcess]:
     """Run `serve(spec)` in a child process for the duration of the block (see module doc)."""
     process = subprocess.Popen(
-        [sys.executable, "-c", _CHILD, pickle.dumps(spec).hex()],
+        # -P: the working directory is not put on the import path (see hil/wiring/emulation.py)
+        [sys.executable, "-P", "-c", _CHILD, pickle.dumps(spec).hex()],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         text=True,

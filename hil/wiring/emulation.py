@@ -262,8 +262,10 @@ class EmbeddedEmulator:
         # stderr goes to a file: a pipe nobody reads could fill up and stall the emulator
         self._stderr = tempfile.TemporaryFile(mode="w+", prefix="hil-emulator-stderr-")  # noqa: SIM115
         self.process = subprocess.Popen(
-            # the emulator's own entry point: it imports sim_backend, not the whole of hil
-            [sys.executable, "-m", "sim_backend", "--spec-file", name],
+            # the emulator's own entry point: it imports sim_backend, not the whole of hil; -P:
+            # not from the working directory (`-m` would put it first on the import path, and a
+            # folder there named like one of ours would be imported instead)
+            [sys.executable, "-P", "-m", "sim_backend", "--spec-file", name],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,
