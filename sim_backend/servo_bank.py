@@ -51,6 +51,7 @@ from sim_backend.servo_law import (
     ARRAY,
     SCALAR,
     Decoded,
+    InPlaceLaw,
     JointView,
     overload_timer,
     to_device_units,
@@ -130,28 +131,43 @@ class H54FirmwareBank:
             self._current_slots.tolist() == list(range(n)) == (self._current_joints.tolist())
         )
         self._identity_mounting = bool(np.all(self.direction == 1) and not self.offset_rad.any())
-        self._no_brakes = np.zeros(n)
 
         self.integral_nm = np.zeros(n)
         self.overload_timer_s = np.zeros(n)
         self.last_current_a = np.zeros(n)
         self._decoded = Decoded(n)
+        self._law = InPlaceLaw(n)
         self._revisions = [-1] * n
         self._goal_writes: list[int | None] = [None] * n
-        self._gains = np.zeros(n)  # kv per joint, kept at its last torque-on value while off
+        # counts the decodes of registers other than Goal Position (caps, gains, modes, torque):
+        # what the plant's actuators follow changes only then
+        self.limits_revision = 0
+        self._limits_applied = -1
         self._first = SimpleNamespace()
         self._direction_one = self.direction[0].item()
         self._offset_one = self.offset_rad[0].item()
         self._refresh_registers()
-        self._gains = self._decoded.velocity_gain.copy()
-        # the last step's state in the device frame, for the lazy Present* items
+        # a step's commands, in buffers (the arrays `command` returns)
+        self._commands = ServoCommands(
+            torque_on=self._decoded.torque_on,
+            velocity_command_rad_s=self._law.command,
+            torque_limit_nm=np.zeros(n),
+            velocity_gain_nms_per_rad=self._decoded.velocity_gain.copy(),
+            brake_damping_nms_per_rad=np.zeros(n),
+        )
+        self._device_angle = np.zeros(n)  # a step's input in the device frame (mounted banks)
+        self._device_velocity = np.zeros(n)
+        self._device_torque = np.zeros(n)
+        # the last step's state, physical frame, for the lazy Present* items (converted to
+        # device units when the bus reads them)
         self._angle = np.zeros(n)
         self._velocity = np.zeros(n)
-        self._measured_velocity = np.zeros(n)
+        self._velocity_noise_measured = np.zeros(n)
         self._registers_measured: list[Registers | None] = list(self._decoded.registers)
+        self._registers_measured_at = self.limits_revision
         self._sample = 0  # counts measure() calls
         self._written = [0] * n  # the sample each table last got (-1: due after a report_joint)
-        self._units: tuple[int, list[list[int]]] | None = None
+        self._units: tuple[int, list[Measurements]] | None = None
         for joint, table in enumerate(self.tables):
             attach = getattr(table, "attach_measurement_source", None)
             if attach is not None:
@@ -194,6 +210,7 @@ class H54FirmwareBank:
                 params = self.params[joint]
                 registers = decode_registers(table, params)
                 decoded.store(joint, registers, table.torque_enabled, params)
+                self.limits_revision += 1
             assert registers is not None
             decoded.goal_angle[joint] = goal_angle_rad(
                 table.item("Goal Position"), registers.homing_offset_pulses
@@ -208,37 +225,38 @@ class H54FirmwareBank:
         self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray, dt_s: float
     ) -> ServoCommands:
         """The velocity-loop inputs and torque caps for this step (servo.py's law on arrays).
-        The arrays returned are valid until the next call."""
+        The arrays returned are the bank's buffers, valid until the next call; the caps, gains
+        and brakes change only when `limits_revision` does."""
         self._refresh_registers()
         d = self._decoded
-        on = d.torque_on
-        angles, velocities = self._device_frame(angles_rad, velocities_rad_s)
-        command, self.integral_nm = velocity_loop(
-            ARRAY, d, angles, velocities, self.integral_nm, dt_s
-        )
-        if not self._identity_mounting:
-            command = self.direction * command
-        if d.all_on:  # the usual case: no selection to make
-            self._gains = d.velocity_gain.copy()
-            return ServoCommands(on, command, d.torque_cap_nm, self._gains, self._no_brakes)
-        self._gains = np.where(on, d.velocity_gain, self._gains)
-        return ServoCommands(
-            torque_on=on,
-            velocity_command_rad_s=np.where(on, command, 0.0),
-            torque_limit_nm=np.where(on, d.torque_cap_nm, 0.0),
-            velocity_gain_nms_per_rad=self._gains,
-            brake_damping_nms_per_rad=np.where(on, 0.0, self.brake_damping),
-        )
-
-    def _device_frame(
-        self, angles_rad: np.ndarray, velocities_rad_s: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Physical angles and velocities in each actuator's frame (device = direction x
-        physical + offset); new arrays."""
         if self._identity_mounting:
-            return angles_rad.copy(), velocities_rad_s.copy()
-        direction = self.direction
-        return direction * angles_rad + self.offset_rad, direction * velocities_rad_s
+            angles, velocities = angles_rad, velocities_rad_s
+        else:
+            angles, velocities = self._device_angle, self._device_velocity
+            np.multiply(self.direction, angles_rad, out=angles)
+            np.add(angles, self.offset_rad, out=angles)
+            np.multiply(self.direction, velocities_rad_s, out=velocities)
+        command = self._law.velocity_loop(d, angles, velocities, self.integral_nm, dt_s)
+        if not self._identity_mounting:
+            np.multiply(self.direction, command, out=command)
+        out = self._commands
+        if self._limits_applied != self.limits_revision:
+            self._limits_applied = self.limits_revision
+            self._update_limits(d, out)
+        if not d.all_on:
+            np.copyto(command, 0.0, where=d.torque_off)
+        return out
+
+    def _update_limits(self, d: Decoded, out: ServoCommands) -> None:
+        """Torque caps (0 where off), kv (kept at its last torque-on value while off) and the
+        dynamic brakes (where off), after registers or torque changed."""
+        np.copyto(out.velocity_gain_nms_per_rad, d.velocity_gain, where=d.torque_on)
+        if d.all_on:
+            np.copyto(out.torque_limit_nm, d.torque_cap_nm)
+            out.brake_damping_nms_per_rad.fill(0.0)
+            return
+        np.copyto(out.torque_limit_nm, np.where(d.torque_on, d.torque_cap_nm, 0.0))
+        np.copyto(out.brake_damping_nms_per_rad, np.where(d.torque_on, 0.0, self.brake_damping))
 
     def command_one(
         self, angle_rad: float, velocity_rad_s: float, dt_s: float
@@ -276,20 +294,23 @@ class H54FirmwareBank:
         self._refresh_registers()
         if current_noise_a is None or velocity_noise_rad_s is None:
             current_noise_a, velocity_noise_rad_s = self._draw_noise()
-        self._angle, self._velocity = self._device_frame(angles_rad, velocities_rad_s)
-        self._measured_velocity = (
-            self._velocity + velocity_noise_rad_s if self._velocity_noisy else self._velocity
-        )
-        torques = torques_nm if self._identity_mounting else self.direction * torques_nm
-        self.last_current_a = torques / self.torque_constant + current_noise_a
-        d = self._decoded
-        self.overload_timer_s = overload_timer(
-            ARRAY, d, abs(self.last_current_a), self.overload_timer_s, dt_s
-        )
-        tripped = self.overload_timer_s >= self.overload_trip_s
-        if tripped.any():
-            self._trip(tripped)
-        self._registers_measured = list(d.registers)
+        np.copyto(self._angle, angles_rad)
+        np.copyto(self._velocity, velocities_rad_s)
+        if self._velocity_noisy:
+            np.copyto(self._velocity_noise_measured, velocity_noise_rad_s)
+        torques = torques_nm
+        if not self._identity_mounting:
+            torques = np.multiply(self.direction, torques_nm, out=self._device_torque)
+        current = self.last_current_a
+        np.divide(torques, self.torque_constant, out=current)
+        np.add(current, current_noise_a, out=current)
+        d, law = self._decoded, self._law
+        law.overload_timer(d, current, self.overload_timer_s, dt_s)
+        if law.trips(self.overload_timer_s, self.overload_trip_s):
+            self._trip(law.tripped)
+        if self._registers_measured_at != self.limits_revision:
+            self._registers_measured_at = self.limits_revision
+            self._registers_measured = list(d.registers)
         self._sample += 1
 
     def measure_one(
@@ -299,6 +320,7 @@ class H54FirmwareBank:
         self._refresh_registers()
         self._measure_joint(0, torque_nm, angle_rad, velocity_rad_s, dt_s)
         self._registers_measured = list(self._decoded.registers)
+        self._registers_measured_at = self.limits_revision
         self._sample += 1
 
     def report_joint(
@@ -317,15 +339,15 @@ class H54FirmwareBank:
     ) -> None:
         current_noise, velocity_noise = self._draw_joint_noise(joint)
         direction = self.direction[joint].item()
-        velocity = direction * velocity_rad_s
-        self._angle[joint] = direction * angle_rad + self.offset_rad[joint].item()
-        self._velocity[joint] = velocity
-        self._measured_velocity[joint] = velocity + velocity_noise
+        self._angle[joint] = angle_rad
+        self._velocity[joint] = velocity_rad_s
+        self._velocity_noise_measured[joint] = velocity_noise
         current = direction * torque_nm / self.torque_constant[joint].item() + current_noise
         self.last_current_a[joint] = current
         d = self._first if self.n == 1 else JointView(self._decoded, joint)
         timer = overload_timer(SCALAR, d, abs(current), self.overload_timer_s[joint].item(), dt_s)
         self.overload_timer_s[joint] = timer
+        self._law.timers_idle = False  # (the next step's update finds out)
         if timer >= self.overload_trip_s[joint]:
             self._trip(joint)
 
@@ -371,15 +393,7 @@ class H54FirmwareBank:
         if units is None or units[0] != self._sample:
             units = (self._sample, self._device_units())
             self._units = units
-        moving, position, velocity, current = units[1]
-        return Measurements(
-            moving=moving[joint],
-            position_pulses=position[joint],
-            velocity_units=velocity[joint],
-            current_units=current[joint],
-            input_voltage_decivolts=self._voltage_decivolts[joint],
-            temperature_c=self._temperature_c[joint],
-        )
+        return units[1][joint]
 
     def write_measurements(self, joint: int) -> None:
         """Write the Present* items into joint `joint`'s table if the last step's are not
@@ -388,15 +402,36 @@ class H54FirmwareBank:
             self._written[joint] = self._sample
             self.tables[joint].set_measurements(self.measurements(joint))
 
-    def _device_units(self) -> list[list[int]]:
+    def _device_units(self) -> list[Measurements]:
         """The last measured state in the control table's units, for all joints at once."""
         registers = self._registers_measured
         homing = [r.homing_offset_pulses if r else 0 for r in registers]
         threshold = [r.moving_threshold_rad_s if r else 0.0 for r in registers]
-        state = (self._angle, self._velocity, self._measured_velocity, self.last_current_a)
         if self.n == 1:  # Python numbers: cheaper than numpy for one joint
-            first = (a[0].item() for a in state)
-            units = to_device_units(SCALAR, *first, homing[0], threshold[0])
-            return [[int(value)] for value in units]
-        units = to_device_units(ARRAY, *state, np.array(homing, float), np.array(threshold))
-        return [value.astype(np.int64).tolist() for value in units]
+            direction = self._direction_one
+            velocity = direction * self._velocity[0].item()
+            measured = velocity + self._velocity_noise_measured[0].item()
+            angle = direction * self._angle[0].item() + self._offset_one
+            current = self.last_current_a[0].item()
+            units = to_device_units(SCALAR, angle, velocity, measured, current, *homing, *threshold)
+            return self._rows([[int(value)] for value in units])
+        angle, velocity = self._angle, self._velocity
+        if not self._identity_mounting:  # the device frame, as the law saw it
+            angle = self.direction * angle + self.offset_rad
+            velocity = self.direction * velocity
+        measured = velocity + self._velocity_noise_measured if self._velocity_noisy else velocity
+        units = to_device_units(
+            ARRAY,
+            angle,
+            velocity,
+            measured,
+            self.last_current_a,
+            np.array(homing, float),
+            np.array(threshold),
+        )
+        return self._rows([value.astype(np.int64).tolist() for value in units])
+
+    def _rows(self, units: list[list[int]]) -> list[Measurements]:
+        """Per joint, (Moving, Present Position, Velocity, Current, Input Voltage, Temperature)."""
+        columns = zip(*units, self._voltage_decivolts, self._temperature_c, strict=True)
+        return list(map(Measurements._make, columns))

@@ -65,10 +65,12 @@ class _ReplySchedule:
         packet = build_status_packet(reply_id, device.status_error(error), params)
         baud = self.line_baud_bps or device.baud_bps
         self.cursor_s += device.return_delay_s + wire_time_s(len(packet), baud)
-        if self.faults.take_drop(reply_id):
-            return  # sent, but lost before the host
-        if self.faults.take_corrupt(reply_id):
-            packet = packet[:-1] + bytes((packet[-1] ^ 0xA5,))
+        faults = self.faults
+        if not faults.replies_intact:
+            if faults.take_drop(reply_id):
+                return  # sent, but lost before the host
+            if faults.take_corrupt(reply_id):
+                packet = packet[:-1] + bytes((packet[-1] ^ 0xA5,))
         self.replies.append((self.cursor_s, packet))
 
 
@@ -121,13 +123,14 @@ class DynamixelChain:
         for listener in self._tick_listeners:
             listener(now_s)
         hearing = [d for d in self.devices if self._hears(d, now_s, line_baud_bps)]
-        self.faults.fired.instructions_unheard += sum(
-            1
-            for d in self.devices
-            if d.dxl_id in self.faults.silent_ids
-            and packet.packet_id in (d.dxl_id, BROADCAST_ID)
-            and d.available(now_s)
-        )
+        if self.faults.silent_ids:
+            self.faults.fired.instructions_unheard += sum(
+                1
+                for d in self.devices
+                if d.dxl_id in self.faults.silent_ids
+                and packet.packet_id in (d.dxl_id, BROADCAST_ID)
+                and d.available(now_s)
+            )
         instruction_baud = line_baud_bps or (hearing[0].baud_bps if hearing else _FALLBACK_BAUD_BPS)
         schedule = _ReplySchedule(
             now_s + wire_time_s(packet.wire_bytes, instruction_baud), line_baud_bps, self.faults

@@ -142,9 +142,17 @@ class H54Device:
             if item.name in self._direct_items
         }
         self._measured_names = frozenset(item.name for item in layout.items if item.measured)
-        self._measurement_packers = _packers(
-            [self._direct_items[name] for name in _MEASUREMENT_ITEMS]
+        self._measurement_address, self._measurement_packer = _packer(
+            [self._direct_items[name] for name in _MEASUREMENT_ITEMS], layout
         )
+        # Each checked item's Data Limit bounds (e-Manual): a constant, or another plain item
+        # read straight from the table (address, end, signed, negated)
+        self._limit_bounds: dict[str, tuple[_Bound, _Bound]] = {
+            item.name: (self._bound(item.limit_low), self._bound(item.limit_high))
+            for item in layout.items
+            if item.limit_low is not None or item.limit_high is not None
+        }
+        self._operating_mode_address = layout["Operating Mode"].address
 
         for item in layout.items:
             self._store(item, item.default)
@@ -235,13 +243,8 @@ class H54Device:
     def set_measurements(self, measurements: Measurements) -> None:
         """Firmware-side: the Present* items after a physics step, in one go (the revision
         stays: they are not the firmware's inputs)."""
-        values = tuple(measurements)  # in the order of _MEASUREMENT_ITEMS
-        table = self._table
-        start = 0
-        for address, packer in self._measurement_packers:
-            end = start + len(packer.format) - 1  # one code per item after "<"
-            packer.pack_into(table, address, *values[start:end])
-            start = end
+        # in the order of _MEASUREMENT_ITEMS, one pack over the block (gaps: undefined bytes)
+        self._measurement_packer.pack_into(self._table, self._measurement_address, *measurements)
 
     def attach_measurement_source(self, write_measurements: Callable[[], None]) -> None:
         """`write_measurements()` runs before every read that may cover the Present* items (a
@@ -425,12 +428,21 @@ class H54Device:
             return self._indirect_target(address)
         return address
 
-    def _limit_value(self, bound: str | int | None) -> int | None:
+    def _bound(self, bound: str | int | None) -> _Bound:
+        """A Data Limit bound as `_limit_value` reads it: None, a constant, or (address, end,
+        signed, negated) of the plain item it names."""
         if bound is None or isinstance(bound, int):
             return bound
-        if bound.startswith("-"):
-            return -self.item(bound[1:])
-        return self.item(bound)
+        name = bound.removeprefix("-")
+        address, end, _, signed = self._direct_items[name]
+        return (address, end, signed, bound.startswith("-"))
+
+    def _limit_value(self, bound: _Bound) -> int | None:
+        if bound is None or isinstance(bound, int):
+            return bound
+        address, end, signed, negated = bound
+        value = int.from_bytes(self._table[address:end], "little", signed=signed)
+        return -value if negated else value
 
     def _refused(self, item: ControlItem | None, torque_on: bool) -> bool:
         """Access Error for a write to this item: none there, read-only, EEPROM while torque is
@@ -451,10 +463,15 @@ class H54Device:
             if not item.in_range(value):
                 return ErrorCode.DATA_RANGE
         for item, value in values:
-            if item.name == "Goal Position" and self.item("Operating Mode") == 4:
+            bounds = self._limit_bounds.get(item.name)
+            if bounds is None:
+                continue
+            if item.address == self._goal_position_address and (
+                self._table[self._operating_mode_address] == 4
+            ):
                 continue  # Extended Position Control Mode ignores the position limits
-            low = self._limit_value(item.limit_low)
-            high = self._limit_value(item.limit_high)
+            low = self._limit_value(bounds[0])
+            high = self._limit_value(bounds[1])
             if (low is not None and value < low) or (high is not None and value > high):
                 return ErrorCode.DATA_LIMIT
         for item, value in values:
@@ -502,17 +519,22 @@ class H54Device:
         return error, plan if error == ErrorCode.NONE else []
 
 
-def _packers(slots: list[tuple[int, int, int, bool]]) -> list[tuple[int, struct.Struct]]:
-    """(address, little-endian Struct) per run of adjacent items (address, end, size, signed):
-    the Present* block written with a pack_into per run, not a to_bytes per item."""
+_Bound = int | tuple[int, int, bool, bool] | None
+
+
+def _packer(
+    slots: list[tuple[int, int, int, bool]], layout: ControlTableLayout
+) -> tuple[int, struct.Struct]:
+    """(first address, little-endian Struct) writing items (address, end, size, signed) in
+    address order with one pack_into; the gaps between them must be undefined bytes (which
+    always read 0, and the pad bytes write 0)."""
     codes = {1: "b", 2: "h", 4: "i"}
-    runs: list[tuple[int, str]] = []
-    end = -1
+    fmt = "<"
+    end = slots[0][0]
     for address, item_end, size, signed in slots:
-        code = codes[size] if signed else codes[size].upper()
-        if address == end:
-            runs[-1] = (runs[-1][0], runs[-1][1] + code)
-        else:
-            runs.append((address, "<" + code))
+        gap = range(end, address)
+        if address < end or any(layout.item_at(byte) is not None for byte in gap):
+            raise ValueError("the measured items must follow each other, gaps undefined")
+        fmt += "x" * len(gap) + (codes[size] if signed else codes[size].upper())
         end = item_end
-    return [(address, struct.Struct(fmt)) for address, fmt in runs]
+    return slots[0][0], struct.Struct(fmt)

@@ -53,6 +53,16 @@ class LineFaults:
         self.drop_next_replies = 0
         self.corrupt_next_replies = 0
 
+    @property
+    def replies_intact(self) -> bool:
+        """No reply is to be dropped or corrupted (the usual line: nothing to consult)."""
+        return not (
+            self.drop_reply_ids
+            or self.corrupt_crc_ids
+            or self.drop_next_replies > 0
+            or self.corrupt_next_replies > 0
+        )
+
     def take_drop(self, dxl_id: int) -> bool:
         """Whether the reply from `dxl_id` is lost (consumes one `drop_next_replies`)."""
         if dxl_id in self.drop_reply_ids:

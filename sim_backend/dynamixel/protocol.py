@@ -110,6 +110,7 @@ def _make_crc_word_table(byte_table: tuple[int, ...]) -> list[int]:
 
 
 _CRC_WORD_TABLE = _make_crc_word_table(_CRC_TABLE)
+_WORD_UNPACKERS: dict[int, struct.Struct] = {}  # big-endian 16-bit words, by count
 
 
 def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
@@ -117,11 +118,14 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
 
     `crc` continues a running CRC, so crc16(b, crc16(a)) == crc16(a + b). Two bytes per step
     (`_CRC_WORD_TABLE`), the last odd byte with the byte table as dynamixel-sdk does."""
-    words = len(data) // 2
+    length = len(data)
+    words = _WORD_UNPACKERS.get(length >> 1)
+    if words is None:
+        words = _WORD_UNPACKERS.setdefault(length >> 1, struct.Struct(f">{length >> 1}H"))
     table = _CRC_WORD_TABLE
-    for word in struct.unpack_from(f">{words}H", data):
+    for word in words.unpack_from(data):
         crc = table[crc ^ word]
-    if len(data) & 1:
+    if length & 1:
         crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ data[-1]) & 0xFF]
     return crc
 
@@ -182,11 +186,29 @@ def build_instruction_packet(packet_id: int, instruction: int, params: bytes = b
     return _frame(packet_id, bytes((instruction,)) + bytes(params))
 
 
+# (ID, LEN) -> the status packet's first 8 bytes (header .. INST) and their CRC
+_STATUS_PREFIXES: dict[tuple[int, int], tuple[bytes, int]] = {}
+
+
 def build_status_packet(packet_id: int, error: int, params: bytes = b"") -> bytes:
-    """A status packet as a device sends it: INST 0x55, error byte, params (stuffed, with CRC)."""
+    """A status packet as a device sends it: INST 0x55, error byte, params (stuffed, with CRC).
+
+    The usual packet needs no stuffing (no FF FF FD in error + params: the region's first byte,
+    0x55, cannot start one): its first 8 bytes and their CRC are those of every packet of this
+    ID and length, computed once; the CRC goes on over the rest."""
     if not 0 <= error <= 0xFF:
         raise ValueError(f"status error must be one byte, got {error}")
-    return _frame(packet_id, bytes((STATUS_INSTRUCTION, error)) + bytes(params))
+    body = bytes((error,)) + bytes(params)
+    if HEADER in body:
+        return _frame(packet_id, bytes((STATUS_INSTRUCTION,)) + body)
+    key = (packet_id, len(body) + 3)
+    prefix = _STATUS_PREFIXES.get(key)
+    if prefix is None:
+        head = _frame(packet_id, bytes((STATUS_INSTRUCTION,)))[:-2]
+        head = head[:5] + bytes((key[1] & 0xFF, key[1] >> 8)) + head[7:]
+        prefix = _STATUS_PREFIXES.setdefault(key, (head, crc16(head)))
+    crc = crc16(body, prefix[1])
+    return prefix[0] + body + bytes((crc & 0xFF, crc >> 8))
 
 
 def wire_time_s(n_bytes: int, baud_bps: int) -> float:

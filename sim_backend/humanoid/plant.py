@@ -88,6 +88,12 @@ class HumanoidPlant:
         self._brake_damping = np.zeros(N_LEG_JOINTS)
         self._braking = self._brake_applied = False
         self._pelvis_force = np.zeros(3)
+        self._pelvis_force_due = True  # xfrc_applied to be written before the next step
+        # The motors' angles and velocities as views into MuJoCo's state where the hinges'
+        # addresses are evenly spaced (they are: motor and gear hinges alternate), so that the
+        # firmware reads them every step without a copy; copies otherwise.
+        self._motor_angle_view = _strided_view(self.data.qpos, self._motor_qpos)
+        self._motor_velocity_view = _strided_view(self.data.qvel, self._motor_dof)
         mujoco.mj_forward(model, self.data)
 
     # --- state (copies, lab leg order) --------------------------------------------------------
@@ -138,8 +144,8 @@ class HumanoidPlant:
 
     @property
     def motor_torque_nm(self) -> np.ndarray:
-        """The servo's output torque this step (after its torque cap)."""
-        return self.data.actuator_force[self._actuator].copy()
+        """The servo's output torque this step (after its torque cap); a new array."""
+        return self.data.actuator_force[self._actuator]
 
     @property
     def gear_torque_nm(self) -> np.ndarray:
@@ -157,8 +163,14 @@ class HumanoidPlant:
         )
 
     def motor_state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """(motor angles, motor velocities) of the 12 joints (new arrays: the firmware's input)."""
-        return self.data.qpos[self._motor_qpos], self.data.qvel[self._motor_dof]
+        """(motor angles, motor velocities) of the 12 joints, the firmware's input every step:
+        views into MuJoCo's state where possible (they follow the next step: copy to keep)."""
+        angles, velocities = self._motor_angle_view, self._motor_velocity_view
+        if angles is None:
+            angles = self.data.qpos[self._motor_qpos]
+        if velocities is None:
+            velocities = self.data.qvel[self._motor_dof]
+        return angles, velocities
 
     def joint_link_angle_rad(self, joint: int) -> float:
         """One joint's link angle (the CAN encoder's source)."""
@@ -240,6 +252,10 @@ class HumanoidPlant:
         self.model.actuator_biasprm[actuators, 2] = -kv
         self.data.ctrl[actuators] = velocity_commands_rad_s
 
+    def set_velocity_commands(self, velocity_commands_rad_s: np.ndarray) -> None:
+        """The servos' velocity-loop inputs alone (torque caps and gains as last set)."""
+        self.data.ctrl[self._actuator] = velocity_commands_rad_s
+
     def set_brakes(self, brake_damping_nms_per_rad: np.ndarray) -> None:
         """The dynamic brakes' motor-side damping per joint (shorted windings while torque is
         off; 0 while the servo drives the motor)."""
@@ -249,11 +265,14 @@ class HumanoidPlant:
     def set_pelvis_force(self, force_n: np.ndarray | Sequence[float]) -> None:
         """A push [N] (world frame) applied at the pelvis's centre of mass until changed."""
         self._pelvis_force[:] = force_n
+        self._pelvis_force_due = True
 
     def step(self) -> None:
         """Advance one physics step."""
         data = self.data
-        data.xfrc_applied[self._pelvis_body, :3] = self._pelvis_force
+        if self._pelvis_force_due:  # (MuJoCo leaves xfrc_applied as it was written)
+            data.xfrc_applied[self._pelvis_body, :3] = self._pelvis_force
+            self._pelvis_force_due = False
         if self._braking or self._brake_applied:  # (no brake: nothing to apply, nothing to undo)
             data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
             self._brake_applied = self._braking
@@ -278,6 +297,7 @@ class HumanoidPlant:
             raise ValueError("support_feet must name feet 0 (left) and/or 1 (right)")
         model, data = self.model, self.data
         mujoco.mj_resetData(model, data)
+        self._pelvis_force_due = True  # (the reset cleared xfrc_applied)
         data.qpos[self._motor_qpos] = angles
         data.qpos[self._gear_qpos] = 0.0
         data.qpos[:7] = (0, 0, 0, 1, 0, 0, 0)
@@ -300,6 +320,17 @@ class HumanoidPlant:
         middle = np.mean(bottoms, axis=0)
         data.qpos[:3] = (-middle[0], -middle[1], -lowest)
         mujoco.mj_forward(model, data)
+
+
+def _strided_view(array: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
+    """array[indices] as a view (a slice) when the indices are evenly spaced, else None."""
+    if len(indices) < 2:
+        return array[indices[0] : indices[0] + 1] if len(indices) else None
+    step = int(indices[1] - indices[0])
+    if step <= 0 or np.any(np.diff(indices) != step):
+        return None
+    view = array[int(indices[0]) : int(indices[-1]) + 1 : step]
+    return view if np.array_equal(view, array[indices]) else None
 
 
 def _half_rotation(rotation: np.ndarray) -> np.ndarray:

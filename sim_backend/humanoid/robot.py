@@ -103,7 +103,7 @@ class EmulatedRobot:
         )
         self.pushes: list[PelvisPush] = []
         self._dt = self.plant.physics_timestep_s
-        self._no_push = np.zeros(3)
+        self._limits_in_plant = -1  # the bank's limits_revision the actuators were given
         self.clock = StepClock(self._dt)  # time in whole physics steps
         self._link_cache: tuple[int, list[float], list[float]] = (-1, [], [])
         self.plant.place_standing(initial_leg_angles_rad, support_feet)
@@ -141,23 +141,30 @@ class EmulatedRobot:
 
     # --- one physics step ---------------------------------------------------------------------
     def step(self) -> None:
-        """Firmware -> motors -> MuJoCo -> overload protection, for all 12 joints at once."""
-        plant = self.plant
-        angles, velocities = plant.motor_state_arrays()
-        out = self.bank.command(angles, velocities, self._dt)
-        plant.set_servos(
-            out.velocity_command_rad_s, out.torque_limit_nm, out.velocity_gain_nms_per_rad
-        )
-        plant.set_brakes(out.brake_damping_nms_per_rad)
-        scenario_time = self.scenario_time_s
-        push = self._no_push
-        if scenario_time is not None and self.pushes:
-            push = sum((event.force_at(scenario_time) for event in self.pushes), np.zeros(3))
-        plant.set_pelvis_force(push)
+        """Firmware -> motors -> MuJoCo -> overload protection, for all 12 joints at once. The
+        actuators' caps, gains and brakes are written to MuJoCo only when the firmware's
+        registers or torque changed (`H54FirmwareBank.limits_revision`), the velocity-loop
+        inputs every step."""
+        plant, bank, dt = self.plant, self.bank, self._dt
+        out = bank.command(*plant.motor_state_arrays(), dt)
+        if self._limits_in_plant != bank.limits_revision:
+            self._limits_in_plant = bank.limits_revision
+            plant.set_servos(
+                out.velocity_command_rad_s, out.torque_limit_nm, out.velocity_gain_nms_per_rad
+            )
+            plant.set_brakes(out.brake_damping_nms_per_rad)
+        else:
+            plant.set_velocity_commands(out.velocity_command_rad_s)
+        if self.pushes:
+            scenario_time = self.scenario_time_s
+            push = np.zeros(3)
+            if scenario_time is not None:
+                push = sum((event.force_at(scenario_time) for event in self.pushes), push)
+            plant.set_pelvis_force(push)
         plant.step()
         self.clock.steps += 1
         angles, velocities = plant.motor_state_arrays()
-        self.bank.measure(plant.motor_torque_nm, angles, velocities, self._dt)
+        bank.measure(plant.motor_torque_nm, angles, velocities, dt)
 
     def on_reboot(self, joint: int) -> None:
         """After a device REBOOT (RAM at its defaults): the servo holds where it stands."""
