@@ -35,6 +35,12 @@ from sim_backend.servo import (
 from sim_backend.spec import EmulatorSpec
 
 FORCE_SENSOR_NEWTONS_PER_COUNT = 1e-3  # the emulated CiA 404 sensor's PV is in mN
+# Present Position, Velocity (611, 615), two undefined bytes, Present Current (621): the block
+# the drivers' sync read takes, one READ per device
+_PRESENT_BLOCK = (611, 12)
+_PRESENT_DTYPE = np.dtype(
+    [("position", "<i4"), ("velocity", "<i4"), ("gap", "V2"), ("current", "<i2")]
+)
 
 
 @dataclass
@@ -74,6 +80,11 @@ class DirectTestbed:
         self._counts_per_rad = np.array(
             [j.encoder_counts_per_rev / (2.0 * math.pi) for j in spec.joints]
         )
+        self._encoder_offset = np.array([j.encoder_offset_rad for j in spec.joints])
+        self._encoder_direction = np.array([j.encoder_direction for j in spec.joints], float)
+        mountings = self.robot.mountings
+        self._motor_direction = np.array([m.direction for m in mountings], float)
+        self._motor_offset = np.array([m.offset_rad for m in mountings])
 
     # --- time --------------------------------------------------------------------------------
     def sync(self) -> None:
@@ -84,7 +95,8 @@ class DirectTestbed:
             testbed.advance(self.spec.period_s)
         self.sync_count += 1
         self.time_s = testbed.scenario_time_s or 0.0
-        self._faults = self.schedule.at(testbed.scenario_time_s)
+        if self.schedule.faults or self.sync_count == 1:  # (none injected: nothing changes)
+            self._faults = self.schedule.at(testbed.scenario_time_s)
         self._drops_pending += self._faults.drop_next
         self._corrupt_pending += self._faults.corrupt_next
         for node, mode, noise in zip(
@@ -102,24 +114,47 @@ class DirectTestbed:
 
     # --- reading -----------------------------------------------------------------------------
     def read(self) -> DirectReading:
+        """Every joint at once: the Present* blocks of the devices that answer converted on
+        arrays, every encoder's count (each node samples: its noise, faults, rounding)."""
         n = self.n_joints
-        nan = np.full(n, np.nan)
-        reading = DirectReading(
-            nan.copy(), nan.copy(), nan.copy(), np.zeros(n, dtype=np.uint8),
-            np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), nan.copy(),
-            np.zeros(n, dtype=bool), self._force_n(),
-            [node.sample_wrench(self.time_s) for node in self.ft_sensors],
-        )  # fmt: skip
-        for i in range(n):
-            if self._actuator_answers(i):
-                self._read_actuator(i, reading)
-            counts = self.encoders[i].sample(self.time_s)
-            if counts is not None:
-                joint = self.spec.joints[i]
-                angle = counts / self._counts_per_rad[i] - joint.encoder_offset_rad
-                reading.link_angle_rad[i] = joint.encoder_direction * angle
-                reading.link_valid[i] = True
-        return reading
+        force = self._force_n()
+        wrenches = [node.sample_wrench(self.time_s) for node in self.ft_sensors]
+        answers = np.array([self._actuator_answers(i) for i in range(n)])
+        counts = [node.sample(self.time_s) for node in self.encoders]
+        link_valid = np.array([c is not None for c in counts])
+        link_counts = np.array([np.nan if c is None else c for c in counts], dtype=float)
+        angle = link_counts / self._counts_per_rad - self._encoder_offset
+        return DirectReading(
+            *self._read_actuators(answers),
+            link_angle_rad=np.where(link_valid, self._encoder_direction * angle, np.nan),
+            link_valid=link_valid,
+            contact_force_n=force,
+            wrenches=wrenches,
+        )
+
+    def _read_actuators(self, answers: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(angle, velocity, current, hardware error, torque on, valid) of every actuator in
+        the joint frame (the mounting undone), NaN / 0 where it did not answer."""
+        devices = self.robot.devices
+        address, length = _PRESENT_BLOCK
+        block = np.frombuffer(
+            b"".join([device.read(address, length)[1] for device in devices]), _PRESENT_DTYPE
+        )
+        direction = self._motor_direction
+        pulses = block["position"].astype(float)
+        angle = direction * (pulses * RAD_PER_PULSE - self._motor_offset)
+        velocity = direction * (block["velocity"].astype(float) * RAD_S_PER_VELOCITY_UNIT)
+        current = direction * (block["current"].astype(float) * AMPERE_PER_CURRENT_UNIT)
+        errors = [d.hardware_error_status for d in devices]
+        torque = [d.torque_enabled for d in devices]
+        return (
+            np.where(answers, angle, np.nan),
+            np.where(answers, velocity, np.nan),
+            np.where(answers, current, np.nan),
+            np.where(answers, np.array(errors, dtype=np.uint8), 0).astype(np.uint8),
+            answers & np.array(torque, dtype=bool),
+            answers,
+        )
 
     def _actuator_answers(self, i: int) -> bool:
         faults = self._faults
@@ -132,19 +167,6 @@ class DirectTestbed:
                 pending.remove(i)
                 return False
         return True
-
-    def _read_actuator(self, i: int, reading: DirectReading) -> None:
-        device = self.robot.devices[i]
-        mount = self.robot.mountings[i]
-        pulses = device.item("Present Position")
-        reading.motor_angle_rad[i] = mount.to_physical(pulses * RAD_PER_PULSE)
-        velocity = device.item("Present Velocity") * RAD_S_PER_VELOCITY_UNIT
-        reading.motor_velocity_rad_s[i] = mount.direction * velocity
-        current = device.item("Present Current") * AMPERE_PER_CURRENT_UNIT
-        reading.motor_current_a[i] = mount.direction * current
-        reading.hardware_error[i] = device.hardware_error_status
-        reading.torque_enabled[i] = device.torque_enabled
-        reading.motor_valid[i] = True
 
     def _force_n(self) -> float:
         if self.force_sensor is None:
@@ -165,6 +187,20 @@ class DirectTestbed:
         device = self.robot.devices[i]
         pulses = round(self.robot.mountings[i].to_device(goal_rad) / RAD_PER_PULSE)
         return device.write_item("Goal Position", pulses) == 0
+
+    def write_goals(self, goals_rad: np.ndarray) -> list[bool]:
+        """`write_goal` of every joint (joint frame) in one go: the pulses computed on arrays
+        (round half to even, as Python's round), one WRITE per actuator that hears."""
+        device_rad = self._motor_direction * np.asarray(goals_rad, float) + self._motor_offset
+        pulses = np.rint(device_rad / RAD_PER_PULSE)
+        if not np.all(np.isfinite(pulses)):
+            raise ValueError(f"goal positions must be finite, got {list(goals_rad)}")
+        return [
+            self.hears(i) and device.write_item("Goal Position", value) == 0
+            for i, (device, value) in enumerate(
+                zip(self.robot.devices, pulses.astype(np.int64).tolist(), strict=True)
+            )
+        ]
 
     def set_torque(self, i: int, on: bool) -> bool:
         """Torque Enable of joint i; False when the actuator did not hear it or refused it."""

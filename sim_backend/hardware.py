@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -94,29 +95,52 @@ def rng(seed: int, stream: int) -> np.random.Generator:
     return np.random.default_rng([seed, stream])
 
 
-def link_encoders(
-    spec: EmulatorSpec,
-    link_angle: Callable[[int], float],
-    link_velocity: Callable[[int], float],
-    instant: SampleInstant,
-) -> list[LinkEncoderNode]:
-    """A CiA 406 link encoder per joint, latching `link_angle(joint)` at `instant` past the
-    last physics step (see `SampleInstant`), mounted as the spec says."""
-    nodes = []
-    for index, joint in enumerate(spec.joints):
+class EncoderSources:
+    """What the link encoders latch, for all joints at once: joint i's link angle `instant`
+    past the last physics step plus its encoder's offset term, link_angle + link_velocity x
+    after_step_s + direction x offset, computed once per physics step and instant (every
+    encoder reads it at every SYNC) on arrays, the same operations as joint by joint.
+
+    link_state() gives every joint's (link angles, link velocities); steps() counts the
+    physics steps (the plant moves only by a step)."""
+
+    def __init__(
+        self,
+        spec: EmulatorSpec,
+        link_state: Callable[[], tuple[np.ndarray, np.ndarray]],
+        steps: Callable[[], int],
+        instant: SampleInstant,
+    ) -> None:
+        self._link_state = link_state
+        self._steps = steps
+        self._instant = instant
         # The node multiplies by its direction; the driver computes direction * (reading -
         # offset): the source is the encoder's own angle, before the node's direction.
-        def source(
-            index: int = index, direction: int = joint.encoder_direction,
-            offset: float = joint.encoder_offset_rad,
-        ) -> float:  # fmt: skip
-            angle = link_angle(index) + link_velocity(index) * instant.after_step_s
-            return angle + direction * offset
+        self._offset_terms = np.array(
+            [joint.encoder_direction * joint.encoder_offset_rad for joint in spec.joints]
+        )
+        self._key: tuple[int, float] | None = None
+        self._values: list[float] = []
 
+    def value(self, index: int) -> float:
+        key = (self._steps(), self._instant.after_step_s)
+        if key != self._key:
+            angles, velocities = self._link_state()
+            values = np.asarray(angles, float) + np.asarray(velocities, float) * key[1]
+            self._values = (values + self._offset_terms).tolist()
+            self._key = key
+        return self._values[index]
+
+
+def link_encoders(spec: EmulatorSpec, sources: EncoderSources) -> list[LinkEncoderNode]:
+    """A CiA 406 link encoder per joint, latching `sources.value(joint)` (its link angle at
+    the SYNC's instant, see `SampleInstant`), mounted as the spec says."""
+    nodes = []
+    for index, joint in enumerate(spec.joints):
         nodes.append(
             LinkEncoderNode(
                 joint.encoder_node_id,
-                source,
+                partial(sources.value, index),
                 counts_per_rev=joint.encoder_counts_per_rev,
                 direction=joint.encoder_direction,
                 heartbeat_ms=spec.heartbeat_ms,
@@ -209,13 +233,17 @@ class EmulatedTestbed(PlantClock):
             devices.append(device)
             joints.append(joint)
         instant = SampleInstant()
-        encoders = link_encoders(
+        hardware = cls(devices, joints, [], None, instant)
+        sources = EncoderSources(
             spec,
-            lambda index: joints[index].plant.link_angle_rad,
-            lambda index: joints[index].plant.link_velocity_rad_s,
+            lambda: (
+                [joint.plant.link_angle_rad for joint in joints],
+                [joint.plant.link_velocity_rad_s for joint in joints],
+            ),
+            lambda: hardware.testbed.clock.steps,
             instant,
         )
-        hardware = cls(devices, joints, encoders, None, instant)
+        hardware.encoders = link_encoders(spec, sources)
         if spec.force_sensor_node_id:
             hardware.force_sensor = ForceSensorNode(
                 spec.force_sensor_node_id,

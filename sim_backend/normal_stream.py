@@ -19,6 +19,7 @@ class NormalStream:
     def __init__(self, rng: np.random.Generator) -> None:
         self._rng = rng
         self._buffer = np.empty(0)
+        self._values: list[float] | None = None  # the buffer as Python floats, for next()
         self._next = 0
 
     def take(self, count: int) -> np.ndarray:
@@ -27,11 +28,20 @@ class NormalStream:
         if end > len(self._buffer):
             rest = self._buffer[self._next :]
             self._buffer = np.concatenate((rest, self._rng.standard_normal(_NORMAL_BLOCK + count)))
+            self._values = None
             self._next, end = 0, count
         drawn = self._buffer[self._next : end]
         self._next = end
         return drawn
 
     def next(self) -> float:
-        """One standard normal as a Python float."""
-        return float(self.take(1)[0])
+        """One standard normal as a Python float (from the block's Python floats: a node
+        draws one per sample, and a numpy scalar per draw costs more than the draw)."""
+        index = self._next
+        values = self._values
+        if values is None:
+            values = self._values = self._buffer.tolist()
+        if index >= len(values):
+            return float(self.take(1)[0])
+        self._next = index + 1
+        return values[index]

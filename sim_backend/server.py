@@ -235,6 +235,8 @@ class Emulator:
 
     # --- faults ----------------------------------------------------------------------------
     def _apply_faults(self) -> None:
+        if not self.fault_schedule.faults and self.sync_count > 1:
+            return  # no fault injected: the first SYNC's application holds for the run
         active = self.fault_schedule.at(self.testbed.scenario_time_s)
         faults = self.chain.faults
         ids = [joint.dxl_id for joint in self.spec.joints]

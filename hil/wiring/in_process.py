@@ -57,11 +57,10 @@ class _Remount:
     def rate(self, spec_frame: np.ndarray) -> np.ndarray:
         return spec_frame if self.same else self.d * self.spec_d * spec_frame
 
-    def to_spec(self, i: int, angle: float) -> float:
+    def to_spec(self, angles: np.ndarray) -> np.ndarray:
         if self.same:
-            return angle
-        device = self.o[i] + self.d[i] * angle
-        return float(self.spec_d[i] * (device - self.spec_o[i]))
+            return angles
+        return self.spec_d * ((self.o + self.d * angles) - self.spec_o)
 
 
 class InProcessJointBus(JointBus):
@@ -162,8 +161,7 @@ class InProcessJointBus(JointBus):
         bad = ~(np.isfinite(goal) & (goal >= self._min) & (goal <= self._max))
         if goal.shape != self._min.shape or bad.any():
             raise ValueError(f"goal position refused, nothing sent: {goal.tolist()}")
-        for i, value in enumerate(goal.tolist()):
-            testbed.write_goal(i, self._motor.to_spec(i, value))
+        testbed.write_goals(self._motor.to_spec(goal))
 
     # --- torque ----------------------------------------------------------------------------
     def enable(self) -> None:

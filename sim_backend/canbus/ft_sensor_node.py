@@ -107,6 +107,7 @@ class ForceTorqueSensorNode(CanopenSlave):
         self._scales = self._counts_per_unit.tolist()
         self._store.validate_writes(_TPDO2_COMMUNICATION, 2, _sync_types_only)
         self._tpdo2_objects, self._tpdo2_struct = self._tpdo2_mapping()
+        self._tpdo2_channels = [sub - 1 for _, sub in self._tpdo2_objects]
 
     # --- process values ------------------------------------------------------------------------
     def _ideal_raw(self) -> float:
@@ -120,7 +121,7 @@ class ForceTorqueSensorNode(CanopenSlave):
         if mode == "stale" and self._latched_valid:
             return
         force, torque = self._wrench_source()
-        values = [float(v) for v in force] + [float(v) for v in torque]
+        values = np.concatenate((force, torque)).tolist()
         if len(values) != _N_CHANNELS or not all(map(math.isfinite, values)):
             raise ValueError(f"node {self.node_id}: the wrench source gave {values!r}")
         # Python numbers, channel by channel (the same products and sums as on arrays)
@@ -168,7 +169,8 @@ class ForceTorqueSensorNode(CanopenSlave):
         if cob_id & PDO_COB_ID_INVALID:
             return []
         transmission_type = int(self._store.stored_value(_TPDO2_COMMUNICATION, 2))
-        values = tuple(self._store.value(index, sub) for index, sub in self._tpdo2_objects)
+        latched = self._latched  # (in a SYNC the channels read the latched sample)
+        values = tuple([latched[channel] for channel in self._tpdo2_channels])
         if transmission_type == TRANSMISSION_ACYCLIC_SYNC:
             if values == self._tpdo2_last:
                 return []

@@ -100,6 +100,16 @@ class ObjectStore:
         hook = self._read_hooks.get(key)
         return hook() if hook is not None else self._values[key]
 
+    def reader(self, index: int, subindex: int = 0) -> Callable[[], Any]:
+        """A function that returns `value(index, subindex)` (its read hook itself, if any)."""
+        key = (index, subindex)
+        self.variable(index, subindex)
+        hook = self._read_hooks.get(key)
+        if hook is not None:
+            return hook
+        values = self._values
+        return lambda: values[key]
+
     def stored_value(self, index: int, subindex: int = 0) -> Any:
         """The stored value, ignoring read hooks."""
         return self._values[(index, subindex)]

@@ -48,19 +48,26 @@ class CanSegment:
             raise ValueError(f"bitrate must be a positive number of bit/s, got {bitrate}")
         self.bitrate = bitrate
         self._listening: dict[int, tuple[CanNode, ...]] = {}
+        self._next_due: tuple[float | None] | None = None  # cached: nodes change when called
 
     def deliver(self, msg: can.Message, now_s: float) -> list[can.Message]:
         """Frames the nodes put on the bus in reaction to `msg` from outside the segment."""
+        self._next_due = None
         return self._propagate([(msg, None)], now_s, report_initial=False)
 
     def next_due_s(self) -> float | None:
         """When the next node sends on its own (boot-up, heartbeat, event timer), or None: an
-        event loop waits until then at most, so that these frames go out on time."""
-        due = [t for t in (node.next_due_s() for node in self.nodes) if t is not None]
-        return min(due) if due else None
+        event loop waits until then at most, so that these frames go out on time. (A node's
+        timers move only when it is handed a frame or polled, through this segment: the
+        answer is kept until then.)"""
+        if self._next_due is None:
+            due = [t for t in (node.next_due_s() for node in self.nodes) if t is not None]
+            self._next_due = (min(due) if due else None,)
+        return self._next_due[0]
 
     def poll(self, now_s: float) -> list[can.Message]:
         """Frames the nodes send on their own by `now_s`, and any reactions to them."""
+        self._next_due = None
         polled = [(frame, node) for node in self.nodes for frame in node.poll(now_s)]
         polled.sort(key=_arbitration_key)
         return self._propagate(polled, now_s, report_initial=True)
@@ -90,6 +97,8 @@ class CanSegment:
                 hearing = self._listeners_of(frame.arbitration_id)
                 if unpowered:
                     hearing = tuple(n for n in self.nodes if n in hearing or n in unpowered)
+                elif not hearing:
+                    continue  # nobody reacts to it (a TPDO): nothing to ask
             replies = [
                 (reply, node)
                 for node in hearing

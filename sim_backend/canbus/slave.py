@@ -47,6 +47,7 @@ from __future__ import annotations
 import abc
 import math
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -197,6 +198,7 @@ class CanopenSlave(abc.ABC):
         self._sdo = SdoServer(self._store)
         self._normals = NormalStream(np.random.default_rng(seed))
         self._tpdo_objects, self._tpdo_struct = self._static_tpdo_mapping()
+        self._tpdo_readers: list[Callable[[], Any]] | None = None
 
         self._heartbeat_cob_id = HEARTBEAT_COB_ID_BASE + node_id
         self._sdo_request_cob_id = SDO_REQUEST_COB_ID_BASE + node_id
@@ -472,7 +474,12 @@ class CanopenSlave(abc.ABC):
         return objects, tpdo_struct
 
     def _tpdo_values(self) -> tuple[Any, ...]:
-        return tuple(self._store.value(index, subindex) for index, subindex in self._tpdo_objects)
+        readers = self._tpdo_readers
+        if readers is None:  # (the read hooks are all registered once the node is built)
+            readers = self._tpdo_readers = [self._store.reader(*key) for key in self._tpdo_objects]
+        if len(readers) == 1:
+            return (readers[0](),)
+        return tuple([read() for read in readers])
 
     def _tpdo_frame(self, values: tuple[Any, ...]) -> can.Message:
         self._last_transmitted = values
@@ -521,12 +528,9 @@ class CanopenSlave(abc.ABC):
             self._on_object_written(index, subindex, value)
 
     def _frame(self, cob_id: int, data: bytes) -> can.Message:
-        return can.Message(
-            arbitration_id=cob_id,
-            data=data,
-            is_extended_id=False,
-            timestamp=self._now_us * 1e-6,
-        )
+        # positional: timestamp, arbitration_id, is_extended_id, is_remote_frame,
+        # is_error_frame, channel, dlc, data (keywords cost more than the frame)
+        return can.Message(self._now_us * 1e-6, cob_id, False, False, False, None, None, data)
 
 
 def _transmission_type_refusal(value: int) -> SdoAbortCode | None:

@@ -40,6 +40,7 @@ pty whose slave has no open fd reports EIO on the master.
 
 from __future__ import annotations
 
+import binascii
 import re
 from collections.abc import Iterable
 
@@ -88,15 +89,26 @@ def bitrate_from_btr(btr0: int, btr1: int) -> float:
     return _SJA1000_CAN_CLOCK_HZ / (prescaler * quanta_per_bit)
 
 
+_HEADS: dict[tuple[int, bool, bool, int], bytes] = {}  # the lines' heads, made once each
+_MAX_HEADS = 4096
+
+
 def encode_frame(msg: can.Message) -> bytes:
     """One bus -> host SLCAN line (without timestamp), e.g. b"t18540F03C0000\\r"."""
     dlc = min(msg.dlc, 8)
-    if msg.is_extended_id:
-        head = f"{'R' if msg.is_remote_frame else 'T'}{msg.arbitration_id:08X}{dlc:d}"
-    else:
-        head = f"{'r' if msg.is_remote_frame else 't'}{msg.arbitration_id:03X}{dlc:d}"
-    payload = "" if msg.is_remote_frame else bytes(msg.data[:dlc]).hex().upper()
-    return (head + payload).encode("ascii") + _OK
+    key = (msg.arbitration_id, msg.is_extended_id, msg.is_remote_frame, dlc)
+    head = _HEADS.get(key)
+    if head is None:
+        if msg.is_extended_id:
+            text = f"{'R' if msg.is_remote_frame else 'T'}{msg.arbitration_id:08X}{dlc:d}"
+        else:
+            text = f"{'r' if msg.is_remote_frame else 't'}{msg.arbitration_id:03X}{dlc:d}"
+        head = text.encode("ascii")
+        if len(_HEADS) < _MAX_HEADS:  # (a node set has a few dozen identifiers)
+            _HEADS[key] = head
+    if msg.is_remote_frame:
+        return head + _OK
+    return head + binascii.hexlify(msg.data[:dlc]).upper() + _OK
 
 
 class SlcanPty:

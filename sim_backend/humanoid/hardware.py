@@ -7,6 +7,7 @@ from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
 from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
 from sim_backend.dynamixel import H54Device
 from sim_backend.hardware import (
+    EncoderSources,
     PlantClock,
     SampleInstant,
     baud_index,
@@ -75,7 +76,14 @@ class EmulatedHumanoid(PlantClock):
             for p in spec.scenario.pelvis_pushes
         ]
         instant = SampleInstant()
-        encoders = link_encoders(spec, robot.link_angle_rad, robot.link_velocity_rad_s, instant)
+        plant = robot.plant
+        sources = EncoderSources(
+            spec,
+            lambda: (plant.link_angle_rad, plant.link_velocity_rad_s),
+            lambda: robot.clock.steps,
+            instant,
+        )
+        encoders = link_encoders(spec, sources)
         ft_sensors = [
             ForceTorqueSensorNode(
                 node_id,

@@ -213,7 +213,7 @@ class HumanoidPlant:
         """
         force = self.data.sensordata[self._force_adr[side] : self._force_adr[side] + 3]
         torque = self.data.sensordata[self._torque_adr[side] : self._torque_adr[side] + 3]
-        return -force.copy(), -torque.copy()
+        return np.negative(force), np.negative(torque)
 
     def ft_sensor_pose(self, side: int) -> tuple[np.ndarray, np.ndarray]:
         """(position [m], rotation world <- sensor) of foot `side`'s force/torque sensor."""
