@@ -67,9 +67,11 @@ class ControlTable(Protocol):
     firmware decodes its registers again only then (it runs every physics step, 12 times over on
     the humanoid). `set_measurements` writes the Present* items in one go. A table may also
     offer `attach_measurement_source(fn)`: it then calls `fn()` before any read that may cover
-    the Present* items, and the firmware writes them only then (H54Device does); and a count
+    the Present* items, and the firmware writes them only then (H54Device does); a count
     `goal_position_writes` of the writes that were Goal Position alone, so that the firmware
-    decodes only the goal after the host's every-tick write."""
+    decodes only the goal after the host's every-tick write; and `add_write_counter(counter)`:
+    the table steps a `WriteCounter` shared by the tables of a firmware bank with its
+    `revision`, so that the bank sees with one comparison per physics step that none changed."""
 
     def item(self, name: str) -> int: ...
 
@@ -84,6 +86,13 @@ class ControlTable(Protocol):
     def revision(self) -> int: ...
 
     def set_measurements(self, measurements: Measurements) -> None: ...
+
+
+class WriteCounter:
+    """Counts the writes to the control tables it was added to (see `ControlTable`)."""
+
+    def __init__(self) -> None:
+        self.count = 0
 
 
 class Measurements(NamedTuple):

@@ -44,6 +44,7 @@ from sim_backend.servo import (
     H54ServoParams,
     Measurements,
     Registers,
+    WriteCounter,
     decode_registers,
     goal_angle_rad,
 )
@@ -138,6 +139,13 @@ class H54FirmwareBank:
         self._decoded = Decoded(n)
         self._law = InPlaceLaw(n)
         self._revisions = [-1] * n
+        # tables that count their writes on a shared counter: no write, nothing to look at
+        self._writes: WriteCounter | None = None
+        if all(hasattr(table, "add_write_counter") for table in self.tables):
+            self._writes = WriteCounter()
+            for table in self.tables:
+                table.add_write_counter(self._writes)
+        self._writes_seen = -1
         self._goal_writes: list[int | None] = [None] * n
         # counts the decodes of registers other than Goal Position (caps, gains, modes, torque):
         # what the plant's actuators follow changes only then
@@ -192,6 +200,11 @@ class H54FirmwareBank:
     def _refresh_registers(self) -> None:
         """Decode the registers of the joints whose table was written since the last call:
         only Goal Position when nothing else was (the host writes it every tick)."""
+        writes = self._writes
+        if writes is not None:
+            if writes.count == self._writes_seen:
+                return
+            self._writes_seen = writes.count
         revisions = [table.revision for table in self.tables]
         if revisions == self._revisions:
             return

@@ -236,17 +236,24 @@ class InPlaceLaw:
         np.add(unclipped, integral, out=unclipped)
         np.abs(unclipped, out=t)
         np.less(t, d.torque_cap_nm, out=integrate)
-        np.multiply(unclipped, error, out=t)
-        np.less(t, 0, out=unwinding)
-        np.logical_or(integrate, unwinding, out=integrate)
-        if not d.all_position_mode:  # torque mode: the integral is left alone
-            np.logical_and(integrate, d.not_torque_mode, out=integrate)
+        # every torque inside its cap (the usual): every integral integrates, whatever the
+        # unwinding test says
+        every = d.all_position_mode and np.count_nonzero(integrate) == len(integral)
+        if not every:
+            np.multiply(unclipped, error, out=t)
+            np.less(t, 0, out=unwinding)
+            np.logical_or(integrate, unwinding, out=integrate)
+            if not d.all_position_mode:  # torque mode: the integral is left alone
+                np.logical_and(integrate, d.not_torque_mode, out=integrate)
         np.multiply(d.integral_rate, error, out=t)
         np.multiply(t, dt_s, out=t)
         np.add(integral, t, out=t)
         np.minimum(d.torque_cap_nm, t, out=t)
-        np.maximum(d.neg_torque_cap_nm, t, out=t)
-        np.copyto(integral, t, where=integrate)
+        if every:
+            np.maximum(d.neg_torque_cap_nm, t, out=integral)
+        else:
+            np.maximum(d.neg_torque_cap_nm, t, out=t)
+            np.copyto(integral, t, where=integrate)
         command = self.command
         np.divide(integral, d.velocity_gain, out=command)
         np.add(speed, command, out=command)

@@ -62,6 +62,7 @@ from sim_backend.dynamixel.control_table import (
     ControlTableLayout,
 )
 from sim_backend.dynamixel.protocol import ALERT_BIT, ErrorCode, Instruction
+from sim_backend.servo import WriteCounter
 
 if TYPE_CHECKING:
     from sim_backend.servo import Measurements
@@ -125,6 +126,7 @@ class H54Device:
         # its registers only then; only Goal Position when all writes since were WRITEs of
         # exactly Goal Position (counted here: the host's every tick).
         self.revision = 0
+        self._write_counters: list[WriteCounter] = []
         self.goal_position_writes = 0
         self._goal_position_address = layout["Goal Position"].address
         # Items that are neither Indirect Data nor Indirect Address: read and written as plain
@@ -222,10 +224,20 @@ class H54Device:
             return self._table[self._indirect_target(item.address)]
         return item.decode(self._table[item.address : item.end])
 
+    def add_write_counter(self, counter: WriteCounter) -> None:
+        """`counter` counts this table's writes too (every step of `revision`): a firmware
+        reading many tables sees at once that none was written."""
+        self._write_counters.append(counter)
+
+    def _bump(self) -> None:
+        self.revision += 1
+        for counter in self._write_counters:
+            counter.count += 1
+
     def set_item(self, name: str, value: int) -> None:
         """Firmware-side write: no access, range or limit rules (the value must fit the item)."""
         if name not in self._measured_names:
-            self.revision += 1
+            self._bump()
         direct = self._direct_items.get(name)
         if direct is not None:
             address, end, size, signed = direct
@@ -260,7 +272,7 @@ class H54Device:
                 f"hardware error bits must be within 0x{HARDWARE_ERROR_BITS_MASK:02X} "
                 f"(bits 7 and 6 are unused), got 0x{bits:X}"
             )
-        self.revision += 1
+        self._bump()
         self._table[892] |= bits
         if bits & self.item("Shutdown"):
             self._table[562] = 0
@@ -269,7 +281,7 @@ class H54Device:
     def clear_hardware_error(self, bits: int) -> None:
         """Clear bits of Hardware Error Status (a non-latched condition went away). The
         shutdown latch stays: only REBOOT clears it."""
-        self.revision += 1
+        self._bump()
         self._table[892] &= ~bits & 0xFF
 
     def available(self, now_s: float) -> bool:
@@ -327,7 +339,7 @@ class H54Device:
             return self._write_whole_item(whole_item, bytes(data))
         error, plan = self._plan_write(address, data)
         if error == ErrorCode.NONE:
-            self.revision += 1
+            self._bump()
             for physical, byte in plan:
                 self._table[physical] = byte
                 if INDIRECT_ADDRESS_BASE <= physical < _INDIRECT_ADDRESS_END:
@@ -392,7 +404,7 @@ class H54Device:
     # ---------------------------------------------------------------- internals
 
     def _store(self, item: ControlItem, value: int) -> None:
-        self.revision += 1
+        self._bump()
         self._table[item.address : item.end] = item.encode(value)
         if item.end > INDIRECT_ADDRESS_BASE and item.address < _INDIRECT_ADDRESS_END:
             self._indirect_map = None
@@ -486,7 +498,7 @@ class H54Device:
             return ErrorCode.ACCESS
         error = self._value_error([(item, item.decode(data))])
         if error == ErrorCode.NONE:
-            self.revision += 1
+            self._bump()
             self.goal_position_writes += item.address == self._goal_position_address
             self._table[item.address : item.end] = data
         return error
@@ -520,6 +532,7 @@ class H54Device:
 
 
 _Bound = int | tuple[int, int, bool, bool] | None
+
 
 
 def _packer(

@@ -25,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from sim_backend.firmware import H54Firmware
@@ -133,9 +134,21 @@ class EmulatedRobot:
         return self.clock.scenario_time_s
 
     def advance(self, duration_s: float) -> int:
-        """Advance by whole physics steps covering duration_s (remainders carry over)."""
+        """Advance by whole physics steps covering duration_s (remainders carry over). MuJoCo
+        computes its sensors (the feet's force/torque) only in the last of them: they are read
+        between two calls, and they feed nothing in the dynamics (the same state, bit for bit)."""
         steps = self.clock.steps_covering(duration_s)
-        for _ in range(steps):
+        if steps > 1:
+            options = self.plant.model.opt
+            flags = options.disableflags
+            options.disableflags = flags | mujoco.mjtDisableBit.mjDSBL_SENSOR
+            try:
+                for _ in range(steps - 1):
+                    self.step()
+            finally:
+                options.disableflags = flags
+            self.step()
+        elif steps:
             self.step()
         return steps
 
