@@ -21,6 +21,7 @@ as the same run through the emulated buses.
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,9 +39,6 @@ FORCE_SENSOR_NEWTONS_PER_COUNT = 1e-3  # the emulated CiA 404 sensor's PV is in 
 # Present Position, Velocity (611, 615), two undefined bytes, Present Current (621): the block
 # the drivers' sync read takes, one READ per device
 _PRESENT_BLOCK = (611, 12)
-_PRESENT_DTYPE = np.dtype(
-    [("position", "<i4"), ("velocity", "<i4"), ("gap", "V2"), ("current", "<i2")]
-)
 
 
 @dataclass
@@ -85,6 +83,7 @@ class DirectTestbed:
         mountings = self.robot.mountings
         self._motor_direction = np.array([m.direction for m in mountings], float)
         self._motor_offset = np.array([m.offset_rad for m in mountings])
+        self._present_block = struct.Struct("<" + "ii2xh" * n)  # (position, velocity, current)
 
     # --- time --------------------------------------------------------------------------------
     def sync(self) -> None:
@@ -119,41 +118,45 @@ class DirectTestbed:
         n = self.n_joints
         force = self._force_n()
         wrenches = [node.sample_wrench(self.time_s) for node in self.ft_sensors]
-        answers = np.array([self._actuator_answers(i) for i in range(n)])
+        answers = [self._actuator_answers(i) for i in range(n)]
         counts = [node.sample(self.time_s) for node in self.encoders]
-        link_valid = np.array([c is not None for c in counts])
         link_counts = np.array([np.nan if c is None else c for c in counts], dtype=float)
-        angle = link_counts / self._counts_per_rad - self._encoder_offset
+        angle = link_counts / self._counts_per_rad - self._encoder_offset  # NaN: no count
         return DirectReading(
             *self._read_actuators(answers),
-            link_angle_rad=np.where(link_valid, self._encoder_direction * angle, np.nan),
-            link_valid=link_valid,
+            link_angle_rad=self._encoder_direction * angle,
+            link_valid=~np.isnan(link_counts),
             contact_force_n=force,
             wrenches=wrenches,
         )
 
-    def _read_actuators(self, answers: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _read_actuators(self, answers: list[bool]) -> tuple[np.ndarray, ...]:
         """(angle, velocity, current, hardware error, torque on, valid) of every actuator in
-        the joint frame (the mounting undone), NaN / 0 where it did not answer."""
+        the joint frame (the mounting undone), NaN / 0 where it did not answer: the Present*
+        blocks of every device (one READ each) unpacked at once."""
         devices = self.robot.devices
         address, length = _PRESENT_BLOCK
-        block = np.frombuffer(
-            b"".join([device.read(address, length)[1] for device in devices]), _PRESENT_DTYPE
+        values = self._present_block.unpack(
+            b"".join([device.read(address, length)[1] for device in devices])
         )
-        direction = self._motor_direction
-        pulses = block["position"].astype(float)
-        angle = direction * (pulses * RAD_PER_PULSE - self._motor_offset)
-        velocity = direction * (block["velocity"].astype(float) * RAD_S_PER_VELOCITY_UNIT)
-        current = direction * (block["current"].astype(float) * AMPERE_PER_CURRENT_UNIT)
-        errors = [d.hardware_error_status for d in devices]
-        torque = [d.torque_enabled for d in devices]
+        n = len(devices)
+        angle, velocity, current = [math.nan] * n, [math.nan] * n, [math.nan] * n
+        errors, torque = [0] * n, [False] * n
+        for i, (device, mount) in enumerate(zip(devices, self.robot.mountings, strict=True)):
+            if answers[i]:
+                pulses, speed, amperes = values[3 * i : 3 * i + 3]
+                angle[i] = mount.to_physical(pulses * RAD_PER_PULSE)
+                velocity[i] = mount.direction * (speed * RAD_S_PER_VELOCITY_UNIT)
+                current[i] = mount.direction * (amperes * AMPERE_PER_CURRENT_UNIT)
+                errors[i] = device.hardware_error_status
+                torque[i] = device.torque_enabled
         return (
-            np.where(answers, angle, np.nan),
-            np.where(answers, velocity, np.nan),
-            np.where(answers, current, np.nan),
-            np.where(answers, np.array(errors, dtype=np.uint8), 0).astype(np.uint8),
-            answers & np.array(torque, dtype=bool),
-            answers,
+            np.array(angle),
+            np.array(velocity),
+            np.array(current),
+            np.array(errors, dtype=np.uint8),
+            np.array(torque, dtype=bool),
+            np.array(answers, dtype=bool),
         )
 
     def _actuator_answers(self, i: int) -> bool:

@@ -99,15 +99,15 @@ class EncoderSources:
     """What the link encoders latch, for all joints at once: joint i's link angle `instant`
     past the last physics step plus its encoder's offset term, link_angle + link_velocity x
     after_step_s + direction x offset, computed once per physics step and instant (every
-    encoder reads it at every SYNC) on arrays, the same operations as joint by joint.
+    encoder reads it at every SYNC).
 
-    link_state() gives every joint's (link angles, link velocities); steps() counts the
-    physics steps (the plant moves only by a step)."""
+    link_state() gives every joint's (link angles, link velocities) as lists; steps() counts
+    the physics steps (the plant moves only by a step)."""
 
     def __init__(
         self,
         spec: EmulatorSpec,
-        link_state: Callable[[], tuple[np.ndarray, np.ndarray]],
+        link_state: Callable[[], tuple[list[float], list[float]]],
         steps: Callable[[], int],
         instant: SampleInstant,
     ) -> None:
@@ -116,18 +116,23 @@ class EncoderSources:
         self._instant = instant
         # The node multiplies by its direction; the driver computes direction * (reading -
         # offset): the source is the encoder's own angle, before the node's direction.
-        self._offset_terms = np.array(
-            [joint.encoder_direction * joint.encoder_offset_rad for joint in spec.joints]
-        )
+        self._offset_terms = [
+            joint.encoder_direction * joint.encoder_offset_rad for joint in spec.joints
+        ]
         self._key: tuple[int, float] | None = None
         self._values: list[float] = []
 
     def value(self, index: int) -> float:
         key = (self._steps(), self._instant.after_step_s)
-        if key != self._key:
+        if key != self._key:  # (Python floats: as cheap as numpy for 12, cheaper for one)
             angles, velocities = self._link_state()
-            values = np.asarray(angles, float) + np.asarray(velocities, float) * key[1]
-            self._values = (values + self._offset_terms).tolist()
+            after = key[1]
+            self._values = [
+                angle + velocity * after + offset
+                for angle, velocity, offset in zip(
+                    angles, velocities, self._offset_terms, strict=True
+                )
+            ]
             self._key = key
         return self._values[index]
 

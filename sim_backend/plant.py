@@ -217,6 +217,9 @@ class TestbedPlant:
         self._contact_wrench = np.zeros(6)
         self._external_force_n = 0.0
         self._brake_damping_nms_per_rad = 0.0
+        self._torque_limit_nm: float | None = None  # as last written to MuJoCo
+        self._load_force_applied = True  # xfrc_applied of the load may hold a push
+        self._brake_applied = True  # qfrc_applied of the motor may hold a brake's force
         self.settle_statically()
 
     # --- state -------------------------------------------------------------------------------
@@ -276,7 +279,9 @@ class TestbedPlant:
     # --- inputs ------------------------------------------------------------------------------
     def set_servo(self, velocity_command_rad_s: float, torque_limit_nm: float) -> None:
         """The servo's velocity-loop input this step, and its torque (current) limit."""
-        self.model.actuator_forcerange[self._actuator] = (-torque_limit_nm, torque_limit_nm)
+        if torque_limit_nm != self._torque_limit_nm:  # (it changes with the registers only)
+            self._torque_limit_nm = torque_limit_nm
+            self.model.actuator_forcerange[self._actuator] = (-torque_limit_nm, torque_limit_nm)
         self.data.ctrl[self._actuator] = velocity_command_rad_s
 
     def set_brake(self, brake_damping_nms_per_rad: float) -> None:
@@ -289,16 +294,27 @@ class TestbedPlant:
         self._external_force_n = force_n
 
     def step(self) -> None:
-        """Advance one physics step."""
-        self.data.xfrc_applied[self._load_body, :] = 0.0
+        """Advance one physics step. (A push and the brake are written only while they act,
+        and zeroed once after: MuJoCo leaves xfrc_applied and qfrc_applied as written.)"""
+        data = self.data
         if self._external_force_n != 0.0:
+            data.xfrc_applied[self._load_body, :] = 0.0
             angle = self.link_angle_rad
             direction = np.array([-math.sin(angle), 0.0, math.cos(angle)])
-            self.data.xfrc_applied[self._load_body, :3] = self._external_force_n * direction
-        self.data.qfrc_applied[self._motor_dof] = (
-            -self._brake_damping_nms_per_rad * self.data.qvel[self._motor_dof]
-        )
-        mujoco.mj_step(self.model, self.data)
+            data.xfrc_applied[self._load_body, :3] = self._external_force_n * direction
+            self._load_force_applied = True
+        elif self._load_force_applied:
+            data.xfrc_applied[self._load_body, :] = 0.0
+            self._load_force_applied = False
+        if self._brake_damping_nms_per_rad != 0.0:
+            data.qfrc_applied[self._motor_dof] = (
+                -self._brake_damping_nms_per_rad * data.qvel[self._motor_dof]
+            )
+            self._brake_applied = True
+        elif self._brake_applied:
+            data.qfrc_applied[self._motor_dof] = 0.0
+            self._brake_applied = False
+        mujoco.mj_step(self.model, data)
 
     def settle_statically(self) -> None:
         """Start with the gear pre-deflected by gravity so the link does not drop at t = 0.

@@ -94,6 +94,7 @@ class Emulator:
         self.fault_schedule = FaultSchedule(spec.scenario.faults, len(spec.joints))
         self._running = False
         self._wall_origin = time.monotonic()
+        self._step_cost_s = 0.0  # realtime: what a physics step takes here (a running mean)
 
     # --- what a host needs -----------------------------------------------------------------
     def endpoints(self) -> dict[str, Any]:
@@ -217,7 +218,13 @@ class Emulator:
             # even when the plant cannot keep up with the wall clock (12 joints on a loaded
             # machine): replies stay on time, the state they report lags instead
             steps = min(math.floor(behind / dt), MAX_PHYSICS_STEPS_PER_TURN)
+            reply_due = self.line.next_due_s()
+            start = time.monotonic()
+            if reply_due is not None and reply_due - start < steps * self._step_cost_s:
+                return reply_due  # a reply falls due first: out with it, then the steps
             self.testbed.advance(steps * dt)
+            cost = (time.monotonic() - start) / steps
+            self._step_cost_s += (cost - self._step_cost_s) / 8  # (a running mean)
             self._apply_faults()
         return self._wall_origin + self.testbed.time_s + dt
 

@@ -95,7 +95,7 @@ class EmulatedJoint:
         plant.set_servo(command, cap)
         plant.set_brake(0.0 if torque_on else self._brake_damping)
         push = 0.0
-        if scenario_time_s is not None:
+        if scenario_time_s is not None and self.pushes:
             push = sum(p.force_at(scenario_time_s) for p in self.pushes)
         plant.set_external_force(push)
         plant.step()

@@ -534,7 +534,6 @@ class H54Device:
 _Bound = int | tuple[int, int, bool, bool] | None
 
 
-
 def _packer(
     slots: list[tuple[int, int, int, bool]], layout: ControlTableLayout
 ) -> tuple[int, struct.Struct]:

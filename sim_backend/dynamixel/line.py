@@ -150,8 +150,9 @@ class DynamixelLine:
         """When the line next needs attention: a held reply falls due or a partial frame would
         time out. None when nothing is pending."""
         candidates = [t for t in (self.parser.idle_deadline_s,) if t is not None]
-        if self._pending:
-            candidates.append(self._pending[0][0])
+        if self._pending:  # (a reply off the wire reaches the host after the adapter's delay:
+            # no need to wake when it leaves the wire, `_process` sorts out a collision)
+            candidates.append(self._pending[0][0] + self.adapter_latency_s)
         if self._in_adapter:
             candidates.append(self._in_adapter[0][0])
         return min(candidates) if candidates else None
@@ -208,6 +209,10 @@ class DynamixelLine:
 
     def _process(self, data: bytes, now_s: float) -> None:
         if self._pending:  # the host is talking: replies not yet on the wire collide
+            if self.adapter_latency_s:  # (those off the wire already are in the adapter)
+                self._in_adapter += [
+                    (due + self.adapter_latency_s, p) for due, p in _take_due(self._pending, now_s)
+                ]
             self.stats.replies_discarded += len(self._pending)
             self._pending.clear()
         packets = self.parser.feed(data, now_s)

@@ -79,7 +79,7 @@ class EmulatedHumanoid(PlantClock):
         plant = robot.plant
         sources = EncoderSources(
             spec,
-            lambda: (plant.link_angle_rad, plant.link_velocity_rad_s),
+            lambda: (plant.link_angle_rad.tolist(), plant.link_velocity_rad_s.tolist()),
             lambda: robot.clock.steps,
             instant,
         )
