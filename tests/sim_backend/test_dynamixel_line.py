@@ -179,6 +179,42 @@ def test_the_usb_adapter_passes_a_reply_on_after_its_latency_timer(clock: FakeCl
         DynamixelLine(DynamixelChain([H54Device(1)]), adapter_latency_s=1e-3)
 
 
+def test_a_reply_off_the_wire_survives_the_host_talking_without_a_wake_up_between(
+    clock: FakeClock,
+) -> None:
+    """The line wakes when a reply reaches the host (wire time + the adapter's latency), not
+    when it leaves the wire; the host talking later still finds the replies that left the wire
+    by then in the adapter (passed on at their time), and only those still on it collide."""
+    chain = DynamixelChain([H54Device(1), H54Device(2), H54Device(3)])
+    line = DynamixelLine(chain, realtime=True, clock=clock, adapter_latency_s=1e-3)
+    host = Host(line.port_path)
+    try:
+        speed = termios.tcgetattr(host.fd)
+        speed[4] = speed[5] = termios.B1000000
+        termios.tcsetattr(host.fd, termios.TCSANOW, speed)
+        start = clock.now_s
+        host.send(build_instruction_packet(0xFE, Instruction.PING))  # all three answer
+        wait_readable(line)
+        line.on_readable()
+        status_s = 14 * 10 / 1e6 + 250 * 2e-6  # each status: Return Delay Time + its bytes
+        first_off_wire = start + 10 * 10 / 1e6 + status_s
+        assert line.next_due_s() == pytest.approx(first_off_wire + 1e-3)
+        clock.now_s = first_off_wire + 0.5 * status_s  # the 2nd still on the wire; no wake-up
+        host.send(PING_1)  # collides with the 2nd and 3rd only
+        wait_readable(line)
+        line.on_readable()
+        assert line.stats.replies_discarded == 2
+        clock.now_s = first_off_wire + 1e-3 - 1e-6
+        line.flush_due()
+        assert host.receive(wait_s=0.02) == []
+        clock.now_s = first_off_wire + 1e-3
+        line.flush_due()
+        assert [reply[0] for reply in host.receive()] == [1]
+    finally:
+        host.close()
+        line.close()
+
+
 def test_host_talking_over_held_replies_discards_them(
     realtime: tuple[DynamixelLine, Host], clock: FakeClock
 ) -> None:

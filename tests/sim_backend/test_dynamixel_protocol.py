@@ -275,3 +275,25 @@ def test_parser_survives_seeded_garbage_and_finds_every_valid_packet() -> None:
 def test_wire_time() -> None:
     assert wire_time_s(10, 1_000_000) == pytest.approx(1e-4)
     assert wire_time_s(14, 57_600) == pytest.approx(14 * 10 / 57_600)
+
+
+def test_status_packets_from_the_cached_header_equal_the_frame_byte_for_byte() -> None:
+    """`build_status_packet` (the header's CRC cached per ID and length, the CRC continued over
+    the error and params; stuffed packets the long way) against the frame written out: header,
+    ID, LEN of the stuffed region, the stuffed region 0x55 error params, the SDK's CRC."""
+    sdk = PacketHandler(2.0)
+    rng = random.Random(7)
+    stuffed = 0
+    for _ in range(3000):
+        packet_id = rng.randrange(0, 253)
+        error = rng.randrange(256)
+        alphabet = [0xFF, 0xFD, 0x00, rng.randrange(256)]  # FF FF FD runs are frequent
+        params = bytes(rng.choice(alphabet) for _ in range(rng.randrange(0, 40)))
+        region = add_stuffing(bytes((0x55, error)) + params)
+        stuffed += len(region) > len(params) + 2
+        head = bytes((0xFF, 0xFF, 0xFD, 0x00, packet_id, (len(region) + 2) & 0xFF))
+        frame = head + bytes(((len(region) + 2) >> 8,)) + region
+        crc = sdk.updateCRC(0, list(frame), len(frame))
+        expected = frame + bytes((crc & 0xFF, crc >> 8))
+        assert build_status_packet(packet_id, error, params) == expected
+    assert stuffed > 50  # the stuffed path ran too

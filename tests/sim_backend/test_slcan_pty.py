@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import random
 import select
 import threading
 import time
@@ -212,3 +213,27 @@ def test_python_can_slcan_opens_talks_and_reopens_the_same_port() -> None:
         finally:
             stop.set()
             pump.join(timeout=2.0)
+
+
+def test_encode_frame_equals_the_lawicel_line_written_out() -> None:
+    """The cached heads and hexlified payloads against each line formatted from its fields."""
+    rng = random.Random(3)
+    for _ in range(3000):
+        extended, remote = rng.random() < 0.3, rng.random() < 0.1
+        identifier = rng.randrange(1 << 29) if extended else rng.randrange(1 << 11)
+        if rng.random() < 0.5:  # repeated identifiers reach the cache
+            identifier &= 0x1F
+        dlc = rng.randrange(9)
+        data = bytes(rng.randrange(256) for _ in range(dlc))
+        msg = can.Message(
+            arbitration_id=identifier,
+            is_extended_id=extended,
+            is_remote_frame=remote,
+            dlc=dlc,
+            data=None if remote else data,
+        )
+        kind = ("R" if remote else "T") if extended else ("r" if remote else "t")
+        width = 8 if extended else 3
+        payload = "" if remote else "".join(f"{byte:02X}" for byte in data)
+        expected = f"{kind}{identifier:0{width}X}{dlc}{payload}\r".encode("ascii")
+        assert encode_frame(msg) == expected
