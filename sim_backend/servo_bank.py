@@ -13,8 +13,9 @@ actuators of a plant in one update per physics step instead of n Python calls:
                                     the overload timers; the Present* items are NOT written here
 
 The control tables are touched only when they change or are read:
-- registers are decoded again only for a joint whose table's `revision` moved (a write), only
-  Goal Position when nothing else was written (`goal_position_writes`: the host's every tick);
+- registers are decoded again only for a joint whose table's `revision` moved (a write; tables
+  that count on a shared `WriteCounter` show with one comparison that none moved), only Goal
+  Position when nothing else was written (`goal_position_writes`: the host's every tick);
 - the Present* items of a table are written when the bus reads them: a table with
   `attach_measurement_source` calls back before any read that may cover them, and the bank
   converts the last step's state to device units then (all joints at once, once per step).
@@ -22,10 +23,12 @@ The control tables are touched only when they change or are read:
 Angles and velocities in and out are physical (the plant's frame); the bank maps them through
 each actuator's mounting (direction, offset) to the device frame its firmware works in.
 
-Noise: the Present Current (and, with `velocity_noise`, Present Velocity) noise of every step is
-drawn from one seeded Generator in joint order (current, then velocity, for each joint whose rms
-is > 0), a block of standard normals at a time (`NormalStream`): the same values as one
-`normal(0, rms)` call per draw.
+Noise: the Present Current (and, with `velocity_noise`, Present Velocity) noise of every step,
+from one seeded Generator in joint order (`ServoNoise`, sim_backend/servo_noise.py).
+
+Per step the law runs in place on preallocated arrays (`InPlaceLaw`, servo_law.py); `command`
+returns the bank's buffers, and the plant's caps, gains and brakes move only with
+`limits_revision` (a decode of anything but Goal Position, torque on or off).
 """
 
 from __future__ import annotations
@@ -37,7 +40,6 @@ from typing import Any
 
 import numpy as np
 
-from sim_backend.normal_stream import NormalStream
 from sim_backend.servo import (
     OVERLOAD_BIT,
     ControlTable,
@@ -58,6 +60,7 @@ from sim_backend.servo_law import (
     to_device_units,
     velocity_loop,
 )
+from sim_backend.servo_noise import ServoNoise
 
 
 @dataclass
@@ -107,30 +110,14 @@ class H54FirmwareBank:
         self.torque_constant = figure("torque_constant_nm_per_a")
         self.brake_damping = figure("dynamic_brake_damping_nms_per_rad")
         self.overload_trip_s = figure("overload_trip_time_s")
-        self._current_rms = figure("current_noise_a")
-        self._velocity_rms = figure("velocity_noise_rad_s") if velocity_noise else np.zeros(n)
+        self._noise = ServoNoise(
+            figure("current_noise_a"),
+            figure("velocity_noise_rad_s") if velocity_noise else np.zeros(n),
+            rng,
+        )
+        self._velocity_noisy = self._noise.velocity_noisy
         self._voltage_decivolts = [round(p.input_voltage_v * 10) for p in self.params]
         self._temperature_c = [round(p.temperature_c) for p in self.params]
-        # the draws of one step, in stream order: (joint, is_velocity)
-        slots = [
-            (j, kind)
-            for j in range(n)
-            for kind, rms in ((False, self._current_rms[j]), (True, self._velocity_rms[j]))
-            if rms > 0
-        ]
-        self._stream = NormalStream(rng) if rng is not None and slots else None
-        self._draws_per_step = len(slots)
-        self._current_slots = np.array([i for i, (_, v) in enumerate(slots) if not v], int)
-        self._current_joints = np.array([j for j, v in slots if not v], int)
-        self._velocity_slots = np.array([i for i, (_, v) in enumerate(slots) if v], int)
-        self._velocity_joints = np.array([j for j, v in slots if v], int)
-        self._current_noise = np.zeros(n)
-        self._velocity_noise = np.zeros(n)
-        self._velocity_noisy = len(self._velocity_joints) > 0
-        # the usual draw: the current's of every joint, in joint order
-        self._every_current = (
-            self._current_slots.tolist() == list(range(n)) == (self._current_joints.tolist())
-        )
         self._identity_mounting = bool(np.all(self.direction == 1) and not self.offset_rad.any())
 
         self.integral_nm = np.zeros(n)
@@ -306,7 +293,7 @@ class H54FirmwareBank:
         for the Present* items (written when read). The noise is this step's draw unless given."""
         self._refresh_registers()
         if current_noise_a is None or velocity_noise_rad_s is None:
-            current_noise_a, velocity_noise_rad_s = self._draw_noise()
+            current_noise_a, velocity_noise_rad_s = self._noise.draw()
         np.copyto(self._angle, angles_rad)
         np.copyto(self._velocity, velocities_rad_s)
         if self._velocity_noisy:
@@ -350,7 +337,7 @@ class H54FirmwareBank:
     def _measure_joint(
         self, joint: int, torque_nm: float, angle_rad: float, velocity_rad_s: float, dt_s: float
     ) -> None:
-        current_noise, velocity_noise = self._draw_joint_noise(joint)
+        current_noise, velocity_noise = self._noise.draw_joint(joint)
         direction = self.direction[joint].item()
         self._angle[joint] = angle_rad
         self._velocity[joint] = velocity_rad_s
@@ -367,30 +354,6 @@ class H54FirmwareBank:
     def on_reboot(self, joint: int) -> None:
         self.integral_nm[joint] = 0.0
         self.overload_timer_s[joint] = 0.0
-
-    def _draw_noise(self) -> tuple[np.ndarray, np.ndarray]:
-        """This step's noise of every joint (current, velocity), in stream order."""
-        current, velocity = self._current_noise, self._velocity_noise
-        if self._stream is None:
-            return current, velocity
-        draws = self._stream.take(self._draws_per_step)
-        if self._every_current and not self._velocity_noisy:
-            np.multiply(draws, self._current_rms, out=current)
-            return current, velocity
-        joints, slots = self._current_joints, self._current_slots
-        current[joints] = draws[slots] * self._current_rms[joints]
-        joints, slots = self._velocity_joints, self._velocity_slots
-        velocity[joints] = draws[slots] * self._velocity_rms[joints]
-        return current, velocity
-
-    def _draw_joint_noise(self, joint: int) -> tuple[float, float]:
-        """One joint's noise (current, then velocity), drawn as a step draws it."""
-        noise = [0.0, 0.0]
-        if self._stream is not None:
-            for kind, rms in enumerate((self._current_rms, self._velocity_rms)):
-                if rms[joint] > 0:
-                    noise[kind] = self._stream.next() * rms[joint].item()
-        return noise[0], noise[1]
 
     def _trip(self, tripped: Any) -> None:
         """The Overload bit for these joints (a mask, or one index); their timers restart."""

@@ -5,9 +5,13 @@ one physics clock. Every physics step, for the 12 joints at once (`H54FirmwareBa
 arrays in the lab's leg order):
 
     firmware.command(motor angles, motor velocities) -> velocity-loop inputs, torque caps, brakes
-    plant.set_servos / set_brakes                       (kv follows the Velocity P Gain register)
+    plant.set_velocity_commands                         (every step)
+    plant.set_servos / set_brakes                       (when the registers or torque changed:
+                                                         kv follows the Velocity P Gain register)
 then one MuJoCo step, then
     firmware.measure(...)  -> overload protection; Present Position/Velocity/Current when read
+The motors' angles and velocities are views into MuJoCo's state (no copy per step), and an
+`advance` of several steps has MuJoCo compute its sensors in the last one only.
 
 so each joint has its own servo, its own torque cap and its own overload timer, read from and
 written to its own control table (an `sim_backend.dynamixel.H54Device`, or any `ControlTable`).
