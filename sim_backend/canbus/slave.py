@@ -489,6 +489,10 @@ class CanopenSlave(abc.ABC):
         if not self._tpdo_enabled:
             return []
         transmission_type = self._transmission_type
+        if transmission_type == 1:  # every SYNC (the count stays 0): the usual, kept short
+            values = self._tpdo_values()
+            self._last_transmitted = values
+            return [self._frame(self._tpdo_cob_id, self._tpdo_struct.pack(*values))]
         if transmission_type == TRANSMISSION_ACYCLIC_SYNC:
             values = self._tpdo_values()
             return [] if values == self._last_transmitted else [self._tpdo_frame(values)]
