@@ -192,18 +192,9 @@ class DirectTestbed:
         return device.write_item("Goal Position", pulses) == 0
 
     def write_goals(self, goals_rad: np.ndarray) -> list[bool]:
-        """`write_goal` of every joint (joint frame) in one go: the pulses computed on arrays
-        (round half to even, as Python's round), one WRITE per actuator that hears."""
-        device_rad = self._motor_direction * np.asarray(goals_rad, float) + self._motor_offset
-        pulses = np.rint(device_rad / RAD_PER_PULSE)
-        if not np.all(np.isfinite(pulses)):
-            raise ValueError(f"goal positions must be finite, got {list(goals_rad)}")
-        return [
-            self.hears(i) and device.write_item("Goal Position", value) == 0
-            for i, (device, value) in enumerate(
-                zip(self.robot.devices, pulses.astype(np.int64).tolist(), strict=True)
-            )
-        ]
+        """`write_goal` of every joint (joint frame) in one call: the in-process bus's sync
+        write. (The device's checks are the cost; numpy for the pulses saved nothing.)"""
+        return [self.write_goal(i, goal) for i, goal in enumerate(np.asarray(goals_rad).tolist())]
 
     def set_torque(self, i: int, on: bool) -> bool:
         """Torque Enable of joint i; False when the actuator did not hear it or refused it."""

@@ -1,8 +1,8 @@
-"""The in-process emulated robot's whole-robot read and goal write (`DirectTestbed.read`,
-`write_goals`: the Present* blocks unpacked at once, the pulses computed on arrays) against the
-joint-by-joint reference they replaced: per joint, the actuator's Present Position, Velocity
-and Current items converted and its mounting undone, the link encoder's count converted, one
-Goal Position WRITE per joint. Two robots from one spec (the same seeds) side by side, with
+"""The in-process emulated robot's whole-robot read (`DirectTestbed.read`: the Present* blocks
+of every device unpacked at once, the counts converted on arrays) and goal write (`write_goals`)
+against the joint-by-joint reference they replaced: per joint, the actuator's Present Position,
+Velocity and Current items converted and its mounting undone, the link encoder's count
+converted, one Goal Position WRITE per joint. Two robots from one spec (the same seeds) side by side, with
 actuators and encoders mounted at random and every kind of fault in its window: every reading
 and every byte of every control table must be equal, not close."""
 
