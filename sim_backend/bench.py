@@ -12,6 +12,9 @@ them (A B A B ...) on a shared machine:
     tick_s(ticks)           a lock-step tick's whole emulator work without the ptys: advance,
                             one SYNC_WRITE of the goals, one SYNC_READ of the 611..622 block,
                             the CAN SYNC with every node's TPDOs, encoded as slcan lines
+    in_process_s(ticks)     the same tick in process (`DirectTestbed`, what the in-process
+                            joint bus drives): sync (advance), read of every sensor in SI, the
+                            goals written
 
 Each returns wall seconds (time.perf_counter); divide by steps or ticks. The figures are
 machine- and load-dependent: compare them only side by side, in one run.
@@ -29,6 +32,7 @@ import numpy as np
 
 from sim_backend.canbus import CanSegment
 from sim_backend.canbus.slcan_pty import encode_frame
+from sim_backend.direct import DirectTestbed
 from sim_backend.dynamixel import DynamixelChain
 from sim_backend.dynamixel.protocol import BROADCAST_ID, Instruction, build_instruction_packet
 from sim_backend.hardware import EmulatedHardware, sensor_nodes
@@ -78,6 +82,11 @@ class EmulatorBench:
         self._segment = CanSegment(sensor_nodes(self.hardware), bitrate=spec.can_bitrate)
         self._can_time_s = 0.0
         self._start_nodes()
+        self._direct = DirectTestbed(spec)
+        for joint in range(self._direct.n_joints):
+            self._direct.set_torque(joint, True)
+        self._direct.sync()
+        self._goals = self._direct.read().motor_angle_rad
 
     def _start_nodes(self) -> None:
         """Every CAN node booted and Operational (NMT start to all), as the host leaves them."""
@@ -117,14 +126,30 @@ class EmulatorBench:
                 raise RuntimeError("the emulated buses did not answer the bench's tick")
         return time.perf_counter() - start
 
+    def in_process_s(self, ticks: int) -> float:
+        direct, goals = self._direct, self._goals
+        start = time.perf_counter()
+        for _ in range(ticks):
+            direct.sync()
+            if not direct.read().motor_valid.all():
+                raise RuntimeError("the in-process robot did not answer the bench's tick")
+            direct.write_goals(goals)
+        return time.perf_counter() - start
+
 
 def interleaved(bench: EmulatorBench, ticks: int, rounds: int) -> dict[str, float]:
-    """Per-tick seconds of MuJoCo alone (the tick's physics steps), `advance` and the whole
-    tick, measured in turn `rounds` times (medians)."""
+    """Per-tick seconds of MuJoCo alone (the tick's physics steps), `advance`, the whole tick
+    and the tick in process, measured in turn `rounds` times (medians)."""
     steps_per_tick = round(bench.spec.period_s / bench.hardware.physics_timestep_s)
-    samples: dict[str, list[float]] = {"mujoco_alone": [], "advance": [], "tick": []}
+    samples: dict[str, list[float]] = {
+        "mujoco_alone": [],
+        "advance": [],
+        "tick": [],
+        "in_process": [],
+    }
     for _ in range(rounds):
         samples["mujoco_alone"].append(bench.mujoco_alone_s(ticks * steps_per_tick) / ticks)
         samples["advance"].append(bench.advance_s(ticks) / ticks)
         samples["tick"].append(bench.tick_s(ticks) / ticks)
+        samples["in_process"].append(bench.in_process_s(ticks) / ticks)
     return {name: float(np.median(values)) for name, values in samples.items()}

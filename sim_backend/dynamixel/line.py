@@ -138,7 +138,11 @@ class DynamixelLine:
             self._process(data, self.clock())
 
     def on_idle(self) -> None:
-        """A poll found nothing: apply the byte timeout to a partial frame (see module doc)."""
+        """A poll found nothing: apply the byte timeout to a partial frame (see module doc).
+        Without a partial frame there is nothing to time out (and no read to make: bytes that
+        came after the poll make the next one readable)."""
+        if not self.parser.buffered_bytes:
+            return
         now_s = self.clock()
         data = self._read_available()
         if data:  # bytes arrived after all: they are not a timeout

@@ -2,9 +2,9 @@
 of every device unpacked at once, the counts converted on arrays) and goal write (`write_goals`)
 against the joint-by-joint reference they replaced: per joint, the actuator's Present Position,
 Velocity and Current items converted and its mounting undone, the link encoder's count
-converted, one Goal Position WRITE per joint. Two robots from one spec (the same seeds) side by side, with
-actuators and encoders mounted at random and every kind of fault in its window: every reading
-and every byte of every control table must be equal, not close."""
+converted, one Goal Position WRITE per joint. Two robots from one spec (the same seeds) side
+by side, with actuators and encoders mounted at random and every kind of fault in its window:
+every reading and every byte of every control table must be equal, not close."""
 
 from __future__ import annotations
 
