@@ -177,8 +177,9 @@ class Emulator:
             node_time = self._node_time()
             due = self.segment.next_due_s()
             if self._node_faults_changed or (due is not None and due <= node_time):
+                every_node = self._node_faults_changed  # (a changed fault acts on a poll)
                 self._node_faults_changed = False
-                slcan.send_frames(self.segment.poll(node_time))
+                slcan.send_frames(self.segment.poll(node_time, due_only=not every_node))
 
     def _on_host_frames(self, frames: list[can.Message]) -> None:
         """The host's frames on the bus; the adapter's answers and the nodes' replies go back

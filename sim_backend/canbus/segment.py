@@ -53,7 +53,7 @@ class CanSegment:
     def deliver(self, msg: can.Message, now_s: float) -> list[can.Message]:
         """Frames the nodes put on the bus in reaction to `msg` from outside the segment."""
         self._next_due = None
-        return self._propagate([(msg, None)], now_s, report_initial=False)
+        return self._propagate([(msg, None)], now_s, from_outside=True)
 
     def next_due_s(self) -> float | None:
         """When the next node sends on its own (boot-up, heartbeat, event timer), or None: an
@@ -65,23 +65,33 @@ class CanSegment:
             self._next_due = (min(due) if due else None,)
         return self._next_due[0]
 
-    def poll(self, now_s: float) -> list[can.Message]:
-        """Frames the nodes send on their own by `now_s`, and any reactions to them."""
+    def poll(self, now_s: float, *, due_only: bool = False) -> list[can.Message]:
+        """Frames the nodes send on their own by `now_s`, and any reactions to them.
+
+        due_only: poll only the nodes whose `next_due_s` has come (the others would send
+        nothing; a caller that changed a node's fault since polls them all)."""
+        nodes = self.nodes
+        if due_only:
+            nodes = tuple(n for n in nodes if (due := n.next_due_s()) is not None and due <= now_s)
         self._next_due = None
-        polled = [(frame, node) for node in self.nodes for frame in node.poll(now_s)]
+        polled = [(frame, node) for node in nodes for frame in node.poll(now_s)]
         polled.sort(key=_arbitration_key)
-        return self._propagate(polled, now_s, report_initial=True)
+        return self._propagate(polled, now_s, from_outside=False)
 
     def _propagate(
         self,
         initial: list[tuple[can.Message, CanNode | None]],
         now_s: float,
         *,
-        report_initial: bool,
+        from_outside: bool,
     ) -> list[can.Message]:
-        on_bus = [frame for frame, _ in initial] if report_initial else []
+        on_bus = [] if from_outside else [frame for frame, _ in initial]
         pending = deque(initial)
-        first_frames = len(initial)
+        # a frame from outside reaches every node (each catches up to now_s); the nodes' own
+        # frames (a poll's) were sent by nodes that ran at now_s: like replies, they go only
+        # to the nodes they concern, and to any other that was not polled nothing happens
+        # but what its next call at a later time does anyway
+        first_frames = len(initial) if from_outside else 0
         unpowered: list[CanNode] | None = None
         while pending:
             frame, sender = pending.popleft()
