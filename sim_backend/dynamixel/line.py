@@ -139,10 +139,8 @@ class DynamixelLine:
 
     def on_idle(self) -> None:
         """A poll found nothing: apply the byte timeout to a partial frame (see module doc).
-        Without a partial frame there is nothing to time out (and no read to make: bytes that
-        came after the poll make the next one readable)."""
-        if not self.parser.buffered_bytes:
-            return
+        (It reads first even without one: in lock-step a read that came while the plant
+        stepped is answered in this turn of the loop, not after one more select.)"""
         now_s = self.clock()
         data = self._read_available()
         if data:  # bytes arrived after all: they are not a timeout
