@@ -97,6 +97,18 @@ def wait_readable(line: DynamixelLine) -> None:
     assert select.select([line.fileno()], [], [], 1.0)[0], "emulator saw no bytes"
 
 
+def assert_passed_on_at(
+    line: DynamixelLine, host: Host, clock: FakeClock, at_s: float, ids: list[int]
+) -> None:
+    """Nothing reaches the host a microsecond before `at_s`; the replies of `ids` at it."""
+    clock.now_s = at_s - 1e-6
+    line.flush_due()
+    assert host.receive(wait_s=0.02) == []
+    clock.now_s = at_s
+    line.flush_due()
+    assert [reply[0] for reply in host.receive()] == ids
+
+
 def test_pty_is_raw_and_survives_the_host_closing_and_reopening(clock: FakeClock) -> None:
     with DynamixelLine(DynamixelChain([H54Device(1)]), clock=clock) as line:
         host = Host(line.port_path, raw=False)  # the emulator made it raw, not the host
@@ -165,12 +177,7 @@ def test_the_usb_adapter_passes_a_reply_on_after_its_latency_timer(clock: FakeCl
         line.flush_due()  # off the wire, into the adapter
         assert host.receive(wait_s=0.02) == []
         assert line.next_due_s() == pytest.approx(wire_due_s + 1e-3)
-        clock.now_s = wire_due_s + 1e-3 - 1e-6
-        line.flush_due()
-        assert host.receive(wait_s=0.02) == []
-        clock.now_s = wire_due_s + 1e-3
-        line.flush_due()
-        assert [reply[0] for reply in host.receive()] == [1]
+        assert_passed_on_at(line, host, clock, wire_due_s + 1e-3, [1])
         assert line.next_due_s() is None
     finally:
         host.close()
@@ -204,12 +211,7 @@ def test_a_reply_off_the_wire_survives_the_host_talking_without_a_wake_up_betwee
         wait_readable(line)
         line.on_readable()
         assert line.stats.replies_discarded == 2
-        clock.now_s = first_off_wire + 1e-3 - 1e-6
-        line.flush_due()
-        assert host.receive(wait_s=0.02) == []
-        clock.now_s = first_off_wire + 1e-3
-        line.flush_due()
-        assert [reply[0] for reply in host.receive()] == [1]
+        assert_passed_on_at(line, host, clock, first_off_wire + 1e-3, [1])
     finally:
         host.close()
         line.close()
