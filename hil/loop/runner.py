@@ -15,6 +15,7 @@ Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends
                 plus the experiment's own goal offsets, with no controller
     STOP        hold the last goal; then the configured exit torque state
 Every tick reads the bus once, so in lock-step emulation tick k is the plant at k periods.
+Tick 0 has no deadline: the wall clock's grid starts when it ends (`LoopClock.start_grid`).
 
 When the supervisor latches torque_off, the loop turns torque off at once; if the bus does not
 take it (a silent device), it tries again every DISABLE_RETRY_TICKS ticks, not every tick (each
@@ -218,6 +219,8 @@ class Loop:
                 break
             self._cycle(tick)
             self.ticks_done = tick.index + 1
+            if tick.index == 0:  # the start-up tick is not paced (hil/loop/clock.py)
+                self.clock.start_grid()
         first = self.supervisor.first_trip
         if first is not None:
             self.ending = RunEnding(Termination.SAFETY_STOP, f"{first.cause} ({first.action})")
