@@ -136,7 +136,7 @@ class Loop:
                 self.controller,
                 self.period,
                 config.model.gain_reschedule_period_s,
-                threaded=not clock.deterministic,
+                wall_clock=not clock.deterministic,
             )
         self._support: object = None
         self._kdist: np.ndarray | None = None
