@@ -24,8 +24,11 @@ try costs the driver's timeouts), and on the tick the actuators answer again.
 Every exit path - the end, Ctrl-C, SIGTERM, an exception in the controller or the bus - goes
 through the same `finally`: the configured exit torque state is applied (best effort on every
 joint, whatever the bus raises), the bus is closed, summary.json is written, and the log files
-are closed. The log is line-buffered, so what was logged before a crash is on disk (a tick's rows
-are written during the next tick, see `_keep_record`).
+are closed. The log is written by a process of its own (hil/output/log_process.py), which has
+every tick's rows at the end of that tick and writes what it has when this process ends, however
+it ends; a writer that ends before the run stops the run like a lost bus. With the live view the
+log stays in this process, line-buffered, a tick's rows written during the next tick (see
+`_keep_record`).
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ from hil.loop.request import RunRequest, StopFlag
 from hil.loop.robot_model import robot_model
 from hil.loop.start_gate import StartRefused, start_gate
 from hil.loop.timeline import Phase, Timeline
+from hil.output.log_process import LogWriterLost, open_run_log
 from hil.output.records import RunResult
 from hil.output.rundir import load_run
 from hil.output.runlog import RunLog
@@ -145,7 +149,7 @@ class Loop:
         self._open_loop = self._open_loop_offsets(config.safety.max_goal_rate_rad_s)
         self.feedback = None if self._open_loop is not None else self._reference_feedback()
         self._goal_base: np.ndarray | None = None  # an open-loop experiment's goals start here
-        self.log = RunLog(
+        self.log = open_run_log(
             request.out_dir,
             config.joint_names,
             meta,
@@ -153,7 +157,11 @@ class Loop:
             mcap=request.mcap,
             sinks=request.sinks,
         )
+        # Formatting the rows here: during the next tick's bus wait. The log writer's process
+        # formats them: handed over at the end of their own tick (see `_write_kept_record`).
+        self._rows_in_wait = isinstance(self.log, RunLog)
         self._kept: tuple[tuple, tuple] | None = None  # the last tick's rows, not yet written
+        self._handed_over_s = 0.0  # how long handing the last tick's rows over took
         self.homing: HomingPlan | None = None
         self.references = np.zeros((0, n))  # a ring: tick k's row is at k % len
         self._reference_filled = 0  # the first tick whose row is not in the ring yet
@@ -229,11 +237,12 @@ class Loop:
         k = tick.index
         t_read = time.perf_counter()
         self.bus.start_read()
-        try:
-            log_s = self._write_kept_record()  # the last tick's rows, while the answers travel
+        try:  # the last tick's rows, while the answers travel
+            wait_log_s = self._write_kept_record() if self._rows_in_wait else 0.0
         finally:  # whatever happened, the answers are collected: no transaction left open
             sample = self.bus.finish_read()
         t_compute = time.perf_counter()
+        log_s = wait_log_s if self._rows_in_wait else self._handed_over_s
         if k == 0:
             sample = self._start(sample)
         self._watch(tick, sample)
@@ -249,8 +258,10 @@ class Loop:
             self._last_goal = goal
         self._log_safety()
         t_done = time.perf_counter()
-        timing = (k, t_compute - t_read - log_s, t_done - t_compute, 0.0, log_s, tick.time_s)
+        timing = (k, t_compute - t_read - wait_log_s, t_done - t_compute, 0.0, log_s, tick.time_s)
         self._keep_record(tick, sample, reference, goal, phase, timing)
+        if not self._rows_in_wait:  # the writer's process has them now: nothing to lose
+            self._handed_over_s = self._write_kept_record()
         self._reference_ahead(k)
         on_progress = self.request.on_progress
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
@@ -445,10 +456,12 @@ class Loop:
 
     # --- the record ----------------------------------------------------------------------------
     # A tick's log.csv and timing.csv rows are kept (`_keep_record`: nothing it keeps is changed
-    # in place later) and written during the next tick, between sending the bus requests and
-    # collecting the answers: formatting a row costs ~0.4 ms (1 joint) to ~0.9 ms (12), time
-    # the answers spend travelling anyway. The last tick's rows are written by `_finish`, on
-    # every exit path; a process killed outright loses the last tick's rows.
+    # in place later). The log writer's process gets them at the end of the tick (~20 us for
+    # the humanoid's ~220 numbers). A log in this process (the live view) writes them during
+    # the next tick, between sending the bus requests and collecting the answers: formatting
+    # them costs ~0.3-0.4 ms on the humanoid, time the answers spend travelling anyway; the
+    # last tick's rows are written by `_finish` on every exit path, and a process killed
+    # outright loses them.
     def _keep_record(
         self,
         tick: Tick,
@@ -497,9 +510,7 @@ class Loop:
         if kept is None:
             return 0.0
         started = time.perf_counter()
-        row, timing = kept
-        self.log.write_row(*row)
-        self.log.write_timing(*timing)
+        self.log.write_tick(*kept)
         return time.perf_counter() - started
 
     def _log_safety(self) -> None:
@@ -571,7 +582,11 @@ class Loop:
         return notes
 
     def _finish(self, wall_time_s: float) -> None:
-        self._write_kept_record()
+        try:
+            self._write_kept_record()
+        except LogWriterLost as exc:  # the rows of the end are lost with the writer: say so
+            if self.ending.ok:
+                self.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
         if self.scheduler is not None:
             self.scheduler.close()
         self._log_safety()

@@ -226,6 +226,11 @@ class RunLog:
         )
         return f"{encode(head)[:-1].decode()},{arrays}}}".encode()
 
+    def write_tick(self, row: tuple, timing: tuple) -> None:
+        """One tick's rows: `write_row(*row)` and `write_timing(*timing)`."""
+        self.write_row(*row)
+        self.write_timing(*timing)
+
     def write_timing(
         self,
         tick: int,
