@@ -474,8 +474,9 @@ class LinkEncoderReader:
             self._events.append(
                 f"{device.label}: NMT state {_state_name(previous)} -> {_state_name(state)}"
             )
-        self._nmt_state[index] = state
-        self._state_names = None
+        if state != previous:
+            self._nmt_state[index] = state
+            self._state_names = None
         self._last_heartbeat_time[index] = self._clock()
 
     def _on_emcy(self, index: int, emcy: canopen.emcy.EmcyError) -> None:

@@ -73,6 +73,7 @@ REFERENCE_AHEAD_TICKS = 12_000
 # vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
 # (serial.SerialException is an OSError).
 LOST_BUS_ERRORS = (BusError, can.CanError, OSError)
+_STATE_NAMES = {state: state.name.lower() for state in SafeState}  # as log.csv writes them
 
 
 @dataclass
@@ -388,7 +389,12 @@ class Loop:
             return self._hold_goal, reference
         if phase is Phase.HOMING:
             return reference, reference  # the actuator's own servo follows the ramp
-        if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
+        n = self.n
+        if (
+            self.supervisor.safe
+            or np.count_nonzero(sample.motor_valid) != n
+            or np.count_nonzero(np.isfinite(link)) != n
+        ):
             return None, reference
         if self._open_loop is not None:
             return self._open_loop_goal(k), reference
@@ -479,7 +485,7 @@ class Loop:
             tick.index,
             tick.time_s,
             sensors,
-            self.supervisor.state.name.lower(),
+            _STATE_NAMES[self.supervisor.state],
             phase.value,
             tick.skipped,
             (

@@ -33,6 +33,7 @@ import select
 import signal
 import struct
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,7 @@ _ROW, _STRING, _EVENT, _CLOSE, _SUMMARY, _FINISH = range(1, 7)
 _TIMING_VALUES = 6  # tick, read_s, compute_s, write_s, log_s, time_s
 _ACK_TIMEOUT_S = 30.0  # the writer answers a close within this (it may have rows to write)
 _PIPE_BYTES = 1 << 20  # ~600 humanoid ticks in flight before the loop would wait
+POLL_S = 0.005  # the writer reads the pipe this often (it is never woken by the loop)
 _F_SETPIPE_SZ = 1031  # fcntl on Linux
 
 
@@ -278,9 +280,17 @@ class _Writer:
             self.columns.append((slice(start + c * n, start + (c + 1) * n), kind))
 
     def run(self, rows: int) -> None:
+        """Read what the pipe holds every POLL_S: a writer blocked in read() would be woken by
+        every row the loop writes, and the kernel runs a task woken through a pipe on the
+        waker's CPU when it can (the loop's), taking it from the loop each tick."""
+        os.set_blocking(rows, False)
         pending = bytearray()
         while True:
-            chunk = os.read(rows, 1 << 16)
+            try:
+                chunk = os.read(rows, _PIPE_BYTES)
+            except BlockingIOError:
+                time.sleep(POLL_S)
+                continue
             if not chunk:  # the loop's process has ended: what was received is written
                 self.log.close()
                 self.log.finish_sinks()
