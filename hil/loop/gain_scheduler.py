@@ -50,6 +50,7 @@ from threadpoolctl import threadpool_limits
 from controller import JointController
 from controller.lqr import TrackingGain
 from hil.loop.robot_model import RobotModel
+from hil.output.log_process import never_preempt_the_loop
 
 LOCKSTEP_LEAD_TICKS = 4  # a design requested at tick k is in force from tick k + 4 (20 ms)
 
@@ -142,6 +143,7 @@ def _serve(connection: Connection, robot: RobotModel, designer: Any) -> None:
     """The designer process: one design per request, until None or the loop's end of the pipe
     closes. Ctrl-C is the loop's to handle (it closes the scheduler)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    never_preempt_the_loop()
     with threadpool_limits(limits=1, user_api="blas"):
         while True:
             try:

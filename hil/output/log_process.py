@@ -54,6 +54,14 @@ POLL_S = 0.005  # the writer reads the pipe this often (it is never woken by the
 _F_SETPIPE_SZ = 1031  # fcntl on Linux
 
 
+def never_preempt_the_loop() -> None:
+    """This (helper) process at SCHED_BATCH where the OS has it: a batch task that wakes up
+    does not take the CPU from the task running there (the loop); it runs on an idle CPU or
+    when the loop waits. Any user may lower a process to it."""
+    with contextlib.suppress(AttributeError, OSError):
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+
+
 class LogWriterLost(OSError):
     """The log writer process ended before the run did: the run stops as on a lost bus."""
 
@@ -253,6 +261,7 @@ def _serve(rows: int, acks: int, args: tuple, layout: _RowLayout) -> None:
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        never_preempt_the_loop()
         out_dir, joint_names, meta, sensor_columns, mcap = args
         log = RunLog(Path(out_dir), joint_names, meta, sensor_columns, mcap=mcap)
         os.write(acks, b"ok\n")
