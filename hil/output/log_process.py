@@ -2,9 +2,12 @@
 the log writer formats and writes them (log.csv, timing.csv, events.jsonl, run.mcap).
 
 Formatting a humanoid tick's rows costs the loop ~0.3-0.4 ms (~200 cells to 9 decimals, the
-MCAP messages); handing its ~220 numbers over costs ~20 us. In process the loop and the
+MCAP messages); handing its ~220 numbers over costs ~25 us. In process the loop and the
 emulated robot share one core and the writer takes the other; through the buses the loop and
-the emulator alternate and the writer takes whichever core is free.
+the emulator alternate and the writer takes whichever core is free. The writer reads the pipe
+every POLL_S (a reader waiting in read() would be woken by every row, and the kernel runs a task
+woken through a pipe on the waker's CPU when it can) and runs at SCHED_BATCH (when it wakes it
+does not preempt the loop).
 
     loop (`LogProcess`)                         writer (forked child, `_serve`)
     write_tick: the tick's numbers, one write   RunLog.write_row + write_timing, the same
