@@ -572,24 +572,30 @@ class DynamixelChain:
         errors: list[str],
         reasons: dict[int, str],
     ) -> DynamixelState:
-        nan = np.nan
-        current_a = np.where(
-            valid, current_to_a(raw[:, _CURRENT], self.units, self._direction), nan
-        )
-        position_rad = position_to_rad(
-            raw[:, _POSITION], self.units, self._direction, self._offset_rad
-        )
-        velocity_rad_s = velocity_to_rad_s(raw[:, _VELOCITY], self.units, self._direction)
+        units, direction = self.units, self._direction
+        position_rad = position_to_rad(raw[:, _POSITION], units, direction, self._offset_rad)
+        velocity_rad_s = velocity_to_rad_s(raw[:, _VELOCITY], units, direction)
+        current_a = current_to_a(raw[:, _CURRENT], units, direction)
+        voltage_v = input_voltage_to_v(raw[:, _VOLTAGE])
+        temperature_c = raw[:, _TEMPERATURE].astype(np.float64)
+        hardware_error = raw[:, _HW_ERROR]
+        torque_enabled = raw[:, _TORQUE] != 0
+        if np.count_nonzero(valid) != valid.size:  # an entry not read is NaN (0, off)
+            invalid = ~valid
+            for values in (position_rad, velocity_rad_s, current_a, voltage_v, temperature_c):
+                values[invalid] = np.nan
+            hardware_error = np.where(valid, hardware_error, 0)
+            torque_enabled &= valid
         return DynamixelState(
             dxl_ids=self._ids,
-            position_rad=np.where(valid, position_rad, nan),
-            velocity_rad_s=np.where(valid, velocity_rad_s, nan),
+            position_rad=position_rad,
+            velocity_rad_s=velocity_rad_s,
             current_a=current_a,
-            torque_estimate_nm=current_a_to_torque_estimate_nm(current_a, self.units),
-            input_voltage_v=np.where(valid, input_voltage_to_v(raw[:, _VOLTAGE]), nan),
-            temperature_c=np.where(valid, raw[:, _TEMPERATURE].astype(np.float64), nan),
-            hardware_error=np.where(valid, raw[:, _HW_ERROR], 0).astype(np.uint8),
-            torque_enabled=valid & (raw[:, _TORQUE] != 0),
+            torque_estimate_nm=current_a_to_torque_estimate_nm(current_a, units),
+            input_voltage_v=voltage_v,
+            temperature_c=temperature_c,
+            hardware_error=hardware_error.astype(np.uint8),
+            torque_enabled=torque_enabled,
             alert=alert,
             valid=valid,
             errors=errors,

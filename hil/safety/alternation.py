@@ -10,6 +10,8 @@ timestamps) is a dozen numpy calls for all joints, whatever their number.
                               one instant (the motor angle, the goal)
     AlternationCounter        per joint, how many of the last `window` second differences
                               were jumps whose sign is opposite to the previous one's
+    CounterPart               some of a counter's joints as a counter (the motor's and the
+                              link's counts of the same joints, kept by one counter)
 """
 
 from __future__ import annotations
@@ -67,16 +69,17 @@ class SecondDifference:
         self._all_finite = [False, False, False]
 
     def update(
-        self, value: np.ndarray, time_s: float, period_s: float
+        self, value: np.ndarray, time_s: float, period_s: float, out: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray | bool | None]:
-        """This reading's second differences and where they are defined: True (every joint),
-        None (no joint) or a mask. The returned array is reused by the next update."""
+        """This reading's second differences (into `out` if given) and where they are
+        defined: True (every joint), None (no joint) or a mask. The returned array is reused
+        by the next update."""
         dt_now = time_s - self.time_s
         step_now = np.subtract(value, self.last, out=self._step_now)
         usable_now = dt_now > 0
         if usable_now:
             np.divide(step_now, dt_now, out=self._slope_now)
-        second = self._second
+        second = self._second if out is None else out
         if usable_now and self._dt > 0:
             np.subtract(self._slope_now, self._slope, out=second)
             second *= period_s
@@ -157,6 +160,33 @@ class AlternationCounter:
     def reset_sign(self, joints: np.ndarray | None = None) -> None:
         """A gap in the readings of these joints (a mask; None: all): the next difference has
         no previous sign to alternate with."""
+        if joints is None:
+            self.last.fill(0.0)
+        else:
+            self.last[joints] = 0.0
+
+
+class CounterPart:
+    """A contiguous part of a counter's joints, seen as a counter of its own (two signals of
+    the same joints counted by one counter: one set of numpy calls for both)."""
+
+    def __init__(self, counter: AlternationCounter, part: slice) -> None:
+        self._counter = counter
+        self._part = part
+
+    @property
+    def count(self) -> np.ndarray:
+        return self._counter.count[self._part]
+
+    @property
+    def last(self) -> np.ndarray:
+        return self._counter.last[self._part]
+
+    @property
+    def window(self) -> int:
+        return self._counter.window
+
+    def reset_sign(self, joints: np.ndarray | None = None) -> None:
         if joints is None:
             self.last.fill(0.0)
         else:

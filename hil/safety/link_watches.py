@@ -17,7 +17,12 @@ import math
 import numpy as np
 
 from drivers.joint_bus import JointSample
-from hil.safety.alternation import AlternationCounter, SecondDifference, scaled_second_difference
+from hil.safety.alternation import (
+    AlternationCounter,
+    CounterPart,
+    SecondDifference,
+    scaled_second_difference,
+)
 from hil.safety.watches import Reporter, Watch, WatchContext
 from hil.vocabulary import NoticeKind, SafetyCause
 
@@ -187,14 +192,19 @@ class LinkNoiseWatch(Watch):
         s = context.safety
         window, threshold = s.link_noise_window_ticks, s.link_noise_jump_rad
         self.history = history
-        self.link = AlternationCounter(n, window, threshold)
-        self.motor = AlternationCounter(n, window, threshold)
+        # the motor's and the link's counts in one counter: joints 0..n-1 and n..2n-1
+        self._signals = AlternationCounter(2 * n, window, threshold)
+        self.motor = CounterPart(self._signals, slice(0, n))
+        self.link = CounterPart(self._signals, slice(n, 2 * n))
         self.goal = AlternationCounter(n, window, threshold)
         self._motor = SecondDifference(n)
         self._goal = SecondDifference(n)
         self.trip_count = math.ceil(s.link_noise_fraction * window)
         self.reported = np.zeros(n, dtype=bool)
         self._motor_reading = np.zeros(n)
+        self._second = np.zeros(2 * n)  # this tick's second differences: motor, link
+        self._added = np.zeros(2 * n, dtype=bool)
+        self._scratch = np.zeros(n)
 
     def note_goal(self, goal_rad: np.ndarray) -> None:
         """The goal the supervisor sent this tick (its alternation is reported with a trip)."""
@@ -211,46 +221,61 @@ class LinkNoiseWatch(Watch):
             motor = self._motor_reading
             np.copyto(motor, sample.motor_angle_rad)
             motor[np.logical_not(sample.motor_valid)] = math.nan
-        second, defined = self._motor.update(motor, stamp, period)
-        if defined is True:
-            self.motor.add(second)
-        elif defined is None:
-            self.motor.reset_sign()
-        else:
-            self.motor.reset_sign(np.logical_not(defined))
-            self.motor.add(second, defined)
-        self._link(sample, stamp, period, report)
-
-    def _link(self, sample: JointSample, stamp: float, period: float, report: Reporter) -> None:
-        history = self.history
-        valid, link = sample.link_valid, sample.link_angle_rad
-        n = valid.size
-        every = np.count_nonzero(valid) == n
-        if not every:
-            self.link.reset_sign(np.logical_not(valid))
-        counted = np.isfinite(history.before_rad)
-        if not every:
-            counted &= valid
+        _, defined = self._motor.update(motor, stamp, period, out=self._second[:n])
+        if defined is not True:
+            self.motor.reset_sign(None if defined is None else np.logical_not(defined))
+        counted, every = self._link_second_difference(sample, stamp, period)
         n_counted = np.count_nonzero(counted)
+        if defined is True and n_counted == n:
+            self._signals.add(self._second)
+        elif defined is not None or n_counted:
+            added = self._added
+            added[:n] = False if defined is None else defined  # (True, or a mask)
+            added[n:] = counted
+            self._signals.add(self._second, added)
         if n_counted:
-            last = history.last_rad
-            if history.uniform:
-                before_s, last_s = history.instants_s
-                dt_now, dt_before = stamp - last_s, last_s - before_s
-            else:
-                dt_now = stamp - history.last_sampled_s
-                dt_before = history.last_sampled_s - history.sampled_before_s
-            second = scaled_second_difference(
-                link - last, last - history.before_rad, dt_now, dt_before, period
-            )
-            self.link.add(second, None if n_counted == n else counted)
             news = self.link.count >= self.trip_count
             if np.count_nonzero(news):
                 news &= counted & np.logical_not(self.reported)
                 for i in np.flatnonzero(news).tolist():
                     self.reported[i] = True
                     self._report(i, report)
-        history.push(valid, link, stamp, every)
+        self.history.push(sample.link_valid, sample.link_angle_rad, stamp, every)
+
+    def _link_second_difference(
+        self, sample: JointSample, stamp: float, period: float
+    ) -> tuple[np.ndarray, bool]:
+        """The link reading's second differences (into the second half of `_second`), where
+        they count (a mask: the joints read now whose last two readings are known), and
+        whether every joint was read."""
+        history = self.history
+        valid, link = sample.link_valid, sample.link_angle_rad
+        n = valid.size
+        every = bool(np.count_nonzero(valid) == n)
+        if not every:
+            self.link.reset_sign(np.logical_not(valid))
+        counted = np.isfinite(history.before_rad)
+        if not every:
+            counted &= valid
+        if not np.count_nonzero(counted):
+            return counted, every
+        last, before = history.last_rad, history.before_rad
+        out = self._second[n:]
+        if history.uniform:  # one instant for every joint: the same operations, in place
+            before_s, last_s = history.instants_s
+            dt_now, dt_before = stamp - last_s, last_s - before_s
+            if dt_now > 0 and dt_before > 0:
+                slope_before = self._scratch
+                np.divide(np.subtract(last, before, out=slope_before), dt_before, out=slope_before)
+                np.divide(np.subtract(link, last, out=out), dt_now, out=out)
+                out -= slope_before
+                out *= period
+                return counted, every
+        else:
+            dt_now = stamp - history.last_sampled_s
+            dt_before = history.last_sampled_s - history.sampled_before_s
+        out[:] = scaled_second_difference(link - last, last - before, dt_now, dt_before, period)
+        return counted, every
 
     def _report(self, i: int, report: Reporter) -> None:
         s = self.context.safety

@@ -249,7 +249,7 @@ class Supervisor:
         return goal.copy()
 
     def _limit(self, goal: np.ndarray) -> np.ndarray:
-        clipped = np.clip(goal, self.min_goal, self.max_goal)
+        clipped = goal.clip(self.min_goal, self.max_goal)  # (np.clip's own method)
         at_limit = clipped != goal
         self._watch_saturation(at_limit)
         if np.count_nonzero(at_limit):
@@ -265,7 +265,7 @@ class Supervisor:
             return clipped
         low = self._last_goal - self.max_goal_step
         high = self._last_goal + self.max_goal_step
-        limited = np.clip(clipped, low, high)
+        limited = clipped.clip(low, high)
         self._rate_limited_total += limited != clipped
         # the last goal is inside the limits, so the rate-limited goal is too
         return limited
