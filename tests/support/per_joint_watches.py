@@ -6,7 +6,6 @@ command shaping as it was."""
 
 from __future__ import annotations
 
-import collections
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -15,8 +14,10 @@ from typing import Any
 import numpy as np
 
 from drivers.joint_bus import ActuatorFault, DeviceRole, JointSample
+from hil.safety import link_watches as product_link_watches
 from hil.safety.supervisor import SafeState, Supervisor
-from hil.safety.watches import Reporter, Watch, WatchContext
+from hil.safety.watch_set import Watches
+from hil.safety.watches import OverrunWatch, Reporter, Watch, WatchContext
 from hil.vocabulary import NoticeKind, SafetyCause
 
 
@@ -147,38 +148,6 @@ class DeflectionWatch(Watch):
                 )
 
 
-class OverrunWatch:
-    """Missed deadlines over a sliding window; fed by the loop (`note`), not by samples.
-
-    A missed deadline counts once plus once per skipped tick (a 100 ms stall at 200 Hz counts
-    20), over a sliding window of `overrun_window_s`.
-    """
-
-    def __init__(self, context: WatchContext) -> None:
-        self.context = context
-        self.total = 0
-        self._window_ticks = max(1, round(context.safety.overrun_window_s / context.period_s))
-        self._recent: collections.deque[tuple[int, int]] = collections.deque()
-        self._recent_count = 0
-
-    def note(self, tick: int, skipped: int, report: Reporter) -> None:
-        s = self.context.safety
-        weight = 1 + max(0, int(skipped))
-        self.total += weight
-        self._recent.append((tick, weight))
-        self._recent_count += weight
-        oldest = tick - self._window_ticks
-        while self._recent and self._recent[0][0] <= oldest:
-            self._recent_count -= self._recent.popleft()[1]
-        if self._recent_count > s.overrun_limit:
-            report.trip(
-                SafetyCause.OVERRUN,
-                None,
-                f"{self._recent_count} missed deadlines within {s.overrun_window_s:g} s "
-                f"(limit {s.overrun_limit}); this one skipped {skipped} tick(s)",
-            )
-
-
 @dataclass
 class LinkHistory:
     """What the link watches remember of one joint's readings between ticks."""
@@ -301,34 +270,7 @@ class AlternationCounter:
 
 
 class LinkNoiseWatch(Watch):
-    """Count sign-alternating jumps of the link reading's second difference, and tell a noisy
-    encoder from an oscillating joint.
-
-    A physical link angle sampled at 200 Hz has a smooth second difference (its sign changes only
-    where the acceleration does, a few times per oscillation); white noise makes it alternate. A
-    tick counts as a jump when |second difference| > `link_noise_jump_rad` and its sign is
-    opposite to the previous tick's; the watch fires when at least `link_noise_fraction` of the
-    last `link_noise_window_ticks` ticks are jumps. Measured on the emulated testbed (RLC2IC,
-    983,040 counts/rev, 6.4e-6 rad per count): the contact and impact experiments with pid and
-    gc+lqr+dob reach at most 2 of 20 (the 80 N impact included); the emulator's noisy_encoder
-    fault (50 counts rms) 18 of 20. With the defaults, noise of about 1e-4 rad (16 counts) rms
-    or more trips; quantisation (+-1 count) never counts.
-
-    Whose fault: the same count runs on the motor angle (the actuator's own encoder, read in the
-    same tick) and on the goals the supervisor sent. A noisy link encoder leaves the motor
-    still: its count stays low. A joint that oscillates at the loop's rate - a controller
-    chattering its goal from tick to tick, the servo and the gear following - moves the motor
-    back and forth with the link (measured: 10 motor jumps in 20 where the link had 11, the goal
-    16, gc+lqr standing on DYROS-JET). When the motor's count is at least half the trip count,
-    the cause is `oscillation`, else `link_noisy`; the message gives all three counts. Only the
-    first verdict per joint is reported.
-
-    The second difference is taken over the readings' own timestamps (the SYNC instants), scaled
-    to the nominal period: (slope now - slope before) x period. On the wall clock the sampling
-    instants jitter by a fraction of a millisecond; a plain second difference of a link moving at
-    1 rad/s would show that jitter as alternating jumps of ~1e-4 rad. Without usable timestamps
-    (not increasing), the plain second difference is used.
-    """
+    """The noise watch, one joint at a time (hil/safety/link_watches.py says what it does)."""
 
     def __init__(self, context: WatchContext, history: Sequence[LinkHistory]) -> None:
         super().__init__(context)
@@ -382,29 +324,7 @@ class LinkNoiseWatch(Watch):
             self.context.period_s,
         )
 
-    def _report(self, i: int, report: Reporter) -> None:
-        s = self.context.safety
-        window = self.link.window
-        counts = (
-            f"link {self.link.count[i]}, motor {self.motor.count[i]}, goal {self.goal.count[i]} "
-            f"of the last {window} ticks jumped back and forth by more than "
-            f"{s.link_noise_jump_rad:g} rad (second difference)"
-        )
-        device = self.context.devices[i]
-        if self.motor.count[i] * 2 >= self.trip_count:
-            report.trip(
-                SafetyCause.OSCILLATION,
-                i,
-                f"{device.actuator} and {device.link_sensor} oscillate together ({counts}): the "
-                "joint oscillates at the loop's rate (the controller or the plant), not the sensor",
-            )
-        else:
-            report.trip(
-                SafetyCause.LINK_NOISY,
-                i,
-                f"{device.link_sensor}: the link jumps, the motor does not ({counts}): a noisy "
-                "link encoder",
-            )
+    _report = product_link_watches.LinkNoiseWatch._report  # the same message
 
 
 def _scaled(
@@ -433,41 +353,18 @@ class _Trace:
         return _scaled(value - last, last - before, time_s - t_last, t_last - t_before, period_s)
 
 
-@dataclass
-class PerJointWatches:
-    """The reference watches in the supervisor's order (the shape of hil.safety.watch_set)."""
-
-    bus: BusErrorWatch
-    actuator: ActuatorFaultWatch
-    current: CurrentGuardWatch
-    link_stale: LinkStaleWatch
-    link_noise: LinkNoiseWatch
-    deflection: DeflectionWatch
-    overrun: OverrunWatch
-
-    @classmethod
-    def default(cls, context: WatchContext) -> PerJointWatches:
-        history = [LinkHistory() for _ in range(context.n_joints)]
-        return cls(
-            bus=BusErrorWatch(context),
-            actuator=ActuatorFaultWatch(context),
-            current=CurrentGuardWatch(context),
-            link_stale=LinkStaleWatch(context, history),
-            link_noise=LinkNoiseWatch(context, history),
-            deflection=DeflectionWatch(context),
-            overrun=OverrunWatch(context),
-        )
-
-    @property
-    def in_order(self) -> tuple[Watch, ...]:
-        return (
-            self.bus,
-            self.actuator,
-            self.current,
-            self.link_stale,
-            self.link_noise,
-            self.deflection,
-        )
+def per_joint_watches(context: WatchContext) -> Watches:
+    """The supervisor's watch set (hil.safety.watch_set.Watches) made of the watches above."""
+    history = [LinkHistory() for _ in range(context.n_joints)]
+    return Watches(
+        bus=BusErrorWatch(context),  # type: ignore[arg-type]
+        actuator=ActuatorFaultWatch(context),  # type: ignore[arg-type]
+        current=CurrentGuardWatch(context),  # type: ignore[arg-type]
+        link_stale=LinkStaleWatch(context, history),  # type: ignore[arg-type]
+        link_noise=LinkNoiseWatch(context, history),  # type: ignore[arg-type]
+        deflection=DeflectionWatch(context),  # type: ignore[arg-type]
+        overrun=OverrunWatch(context),
+    )
 
 
 class PerJointSupervisor(Supervisor):
@@ -477,9 +374,7 @@ class PerJointSupervisor(Supervisor):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         safety = self.safety
-        self.watches = PerJointWatches.default(  # type: ignore[assignment]
-            self.watches.overrun.context
-        )
+        self.watches = per_joint_watches(self.watches.overrun.context)
         assert self.watches.overrun.context.safety is safety
 
     def command(self, controller_goal: np.ndarray | None, sample: JointSample) -> np.ndarray | None:
