@@ -197,7 +197,7 @@ class LogProcess:
             with contextlib.suppress(LogWriterLost):
                 self._send_record(_FINISH, b"")
                 self._await("finishing the log")
-        self._finished = True
+        self._finished = self.closed = True  # nothing more to write: close() does nothing
         self._reap()
 
     def __enter__(self) -> LogProcess:
