@@ -283,7 +283,7 @@ class JointController(abc.ABC):
         array = np.asarray(value, dtype=float)
         if array.shape != (self.n_joints,):
             raise ValueError(f"{what} must have shape ({self.n_joints},), got {array.shape}")
-        if not np.all(np.isfinite(array)):
+        if np.count_nonzero(np.isfinite(array)) != array.size:
             bad = np.flatnonzero(~np.isfinite(array)).tolist()
             raise ValueError(f"{what} is not finite for joints {bad}: do not step on invalid data")
         return array

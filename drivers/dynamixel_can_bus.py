@@ -36,7 +36,8 @@ from drivers.canbus import (
     LinkEncoderReader,
 )
 from drivers.canbus.read_ahead import slcan_read_ahead
-from drivers.dynamixel import DynamixelChain, DynamixelChainConfig, actuator_fault
+from drivers.canbus.readings import LinkReading
+from drivers.dynamixel import DynamixelChain, DynamixelChainConfig, DynamixelState, actuator_fault
 from drivers.joint_bus import (
     ActuatorFault,
     BusError,
@@ -160,6 +161,12 @@ class DynamixelCanBus(JointBus):
         self._channel_joints = [
             config.layout.joints_of_channel(c) for c in range(len(config.can_channels))
         ]
+        identity = np.arange(len(config.joint_names))
+        self._in_joint_order = (
+            len(self._chain_joints) == len(self._channel_joints) == 1
+            and np.array_equal(self._chain_joints[0], identity)
+            and np.array_equal(self._channel_joints[0], identity)
+        )
         self._closed = False
 
     # --- lifecycle -------------------------------------------------------------------------
@@ -226,7 +233,6 @@ class DynamixelCanBus(JointBus):
         """The link encoders' answers first (they come within a few hundred microseconds of
         the SYNC), then the Dynamixel replies (held ~1 ms longer by the USB adapter); the other
         way round with `links_after_actuators` (a lock-step emulator)."""
-        sample = JointSample.empty(self.n_joints)
         try:
             if self.config.links_after_actuators:
                 motors = [chain.receive_state() for chain in self.chains]
@@ -236,12 +242,16 @@ class DynamixelCanBus(JointBus):
                 motors = [chain.receive_state() for chain in self.chains]
         except (can.CanError, OSError) as exc:  # a port that vanished (serial errors are OSError)
             raise BusError(f"the bus failed while reading: {exc}") from exc
+        if self._in_joint_order:
+            return self._sample_in_joint_order(motors[0], links[0])
+        sample = JointSample.empty(self.n_joints)
         sample.timestamp_s = links[0].sync_time_s
+        self._add_faults(sample, motors, links)
         temperature = np.full(self.n_joints, np.nan)
         voltage = np.full(self.n_joints, np.nan)
         sample.diagnostics[Diagnostic.ACTUATOR_TEMPERATURE_C] = temperature
         sample.diagnostics[Diagnostic.ACTUATOR_INPUT_VOLTAGE_V] = voltage
-        for joints, chain, motor in zip(self._chain_joints, self.chains, motors, strict=True):
+        for joints, motor in zip(self._chain_joints, motors, strict=True):
             temperature[joints] = motor.temperature_c
             voltage[joints] = motor.input_voltage_v
             sample.motor_angle_rad[joints] = motor.position_rad
@@ -250,11 +260,49 @@ class DynamixelCanBus(JointBus):
             sample.fault_code[joints] = motor.hardware_error
             sample.torque_enabled[joints] = motor.torque_enabled
             sample.motor_valid[joints] = motor.valid
-            for slot in np.flatnonzero(motor.hardware_error):
-                sample.actuator_fault[joints[slot]] = actuator_fault(
-                    int(motor.hardware_error[slot])
-                )
-            for slot in np.flatnonzero(~motor.valid):
+        for joints, link in zip(self._channel_joints, links, strict=True):
+            sample.link_angle_rad[joints] = link.angles_rad
+            sample.link_valid[joints] = link.valid
+            sample.link_age_s[joints] = link.age_s
+        return sample
+
+    def _sample_in_joint_order(self, motor: DynamixelState, link: LinkReading) -> JointSample:
+        """One chain and one CAN channel, each in joint order: the sample takes the readings'
+        arrays as they are (new ones every read)."""
+        diagnostics = {
+            Diagnostic.ACTUATOR_TEMPERATURE_C: motor.temperature_c,
+            Diagnostic.ACTUATOR_INPUT_VOLTAGE_V: motor.input_voltage_v,
+        }
+        sample = JointSample(
+            timestamp_s=link.sync_time_s,
+            motor_angle_rad=motor.position_rad,
+            link_angle_rad=link.angles_rad,
+            motor_velocity_rad_s=motor.velocity_rad_s,
+            motor_current_a=motor.current_a,
+            actuator_fault=np.zeros(self.n_joints, dtype=np.uint8),
+            fault_code=motor.hardware_error.astype(np.int64),
+            torque_enabled=motor.torque_enabled,
+            motor_valid=motor.valid,
+            link_valid=link.valid,
+            link_age_s=link.age_s,
+            diagnostics=diagnostics,
+        )
+        self._add_faults(sample, [motor], [link])
+        return sample
+
+    def _add_faults(
+        self, sample: JointSample, motors: list[DynamixelState], links: list[LinkReading]
+    ) -> None:
+        """The readings' faults, bus errors, notes and named sensors in the sample."""
+        for joints, chain, motor in zip(self._chain_joints, self.chains, motors, strict=True):
+            if np.count_nonzero(motor.hardware_error):
+                for slot in np.flatnonzero(motor.hardware_error).tolist():
+                    sample.actuator_fault[joints[slot]] = actuator_fault(
+                        int(motor.hardware_error[slot])
+                    )
+            if np.count_nonzero(motor.valid) == motor.valid.size:
+                continue
+            for slot in np.flatnonzero(~motor.valid).tolist():
                 dxl_id = motor.dxl_ids[slot]
                 reason = motor.invalid_reasons.get(dxl_id) or "; ".join(motor.errors) or "invalid"
                 joint = int(joints[slot])
@@ -262,25 +310,22 @@ class DynamixelCanBus(JointBus):
                     BusFault(joint, DeviceRole.ACTUATOR, self._actuator_label(chain, slot), reason)
                 )
         for joints, reader, link in zip(self._channel_joints, self.readers, links, strict=True):
-            sample.link_angle_rad[joints] = link.angles_rad
-            sample.link_valid[joints] = link.valid
-            sample.link_age_s[joints] = link.age_s
-            for slot in np.flatnonzero(~link.valid):
-                node = reader.encoder_configs[slot].node_id
-                sample.bus_errors.append(
-                    BusFault(
-                        int(joints[slot]),
-                        DeviceRole.LINK_SENSOR,
-                        f"link encoder node {node}",
-                        "no answer to SYNC",
+            if np.count_nonzero(link.valid) != link.valid.size:
+                for slot in np.flatnonzero(~link.valid).tolist():
+                    node = reader.encoder_configs[slot].node_id
+                    sample.bus_errors.append(
+                        BusFault(
+                            int(joints[slot]),
+                            DeviceRole.LINK_SENSOR,
+                            f"link encoder node {node}",
+                            "no answer to SYNC",
+                        )
                     )
-                )
             sample.notes.extend(link.events)
             if link.force is not None:
                 sample.extra["contact_force_n"] = link.force.force_n
             for wrench in link.wrenches:
                 add_wrench(sample.extra, wrench.label, wrench.force_n, wrench.torque_nm)
-        return sample
 
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:
         goal = np.asarray(goal_motor_angle_rad, dtype=float)

@@ -118,10 +118,19 @@ class HumanoidLegGravity(GravityModel):
         if self._base_rotation is not None:
             return self._base_rotation
         lm = self.leg_model
-        feet = self.support.feet
-        sole = lm.data.oMf[lm.sole_frame_ids[feet[0]]].rotation  # pelvis <- sole
-        if len(feet) == 2:  # halfway between the soles' orientations
-            sole = sole @ _half_rotation(sole.T @ lm.data.oMf[lm.sole_frame_ids[feet[1]]].rotation)
+        soles = [lm.data.oMf[frame] for frame in lm.sole_frame_ids]  # pelvis <- sole
+        return self._pelvis_rotation(soles[0].rotation, soles[1].rotation)
+
+    def _pelvis_rotation(self, left_sole: np.ndarray, right_sole: np.ndarray) -> np.ndarray:
+        """world <- pelvis from the soles' orientations (pelvis <- sole), the pelvis at the
+        identity: the support sole flat, or halfway between the two in double support."""
+        if self._base_rotation is not None:
+            return self._base_rotation
+        support = self.support
+        if support is SupportState.DOUBLE:
+            sole = left_sole @ _half_rotation(left_sole.T @ right_sole)
+        else:
+            sole = left_sole if support is SupportState.LEFT else right_sole
         return sole.T  # the sole flat: world <- sole = identity
 
     def gravity_torque(self, link_angle_rad: np.ndarray) -> np.ndarray:
@@ -148,11 +157,11 @@ class HumanoidLegGravity(GravityModel):
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         pin.jacobianCenterOfMass(model, data, True)
-        rotation = self._pelvis_rotation_from_kinematics()
+        left_sole, right_sole = (data.oMf[frame] for frame in lm.sole_frame_ids)
+        rotation = self._pelvis_rotation(left_sole.rotation, right_sole.rotation)
         weight = rotation.T @ self.weight_n
         com = data.com[0]
-        left = data.oMf[lm.sole_frame_ids[0]].translation
-        right = data.oMf[lm.sole_frame_ids[1]].translation
+        left, right = left_sole.translation, right_sole.translation
         if self.support is SupportState.LEFT:
             mu = 0.0
         elif self.support is SupportState.RIGHT:
@@ -198,26 +207,21 @@ class HumanoidLegGravity(GravityModel):
 def _half_rotation(rotation: np.ndarray) -> np.ndarray:
     """exp(log(R) / 2): the rotation about the same axis by half the angle (Rodrigues; the
     same as pinocchio's exp3(0.5 * log3(R)) for angles below pi, several times faster)."""
-    vee = np.array(
-        [
-            rotation[2, 1] - rotation[1, 2],
-            rotation[0, 2] - rotation[2, 0],
-            rotation[1, 0] - rotation[0, 1],
-        ]
-    )
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rotation.tolist()
+    vee = np.array([r21 - r12, r02 - r20, r10 - r01])
     sin_angle = 0.5 * math.sqrt(float(vee @ vee))
-    cos_angle = 0.5 * (rotation[0, 0] + rotation[1, 1] + rotation[2, 2] - 1.0)
+    cos_angle = 0.5 * (r00 + r11 + r22 - 1.0)
     angle = math.atan2(sin_angle, cos_angle)
     if angle < 1e-12:
         return np.eye(3)
-    axis = vee / (2.0 * sin_angle)
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    x, y, z = (vee / (2.0 * sin_angle)).tolist()
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     half = 0.5 * angle
     return np.eye(3) + math.sin(half) * k + (1.0 - math.cos(half)) * (k @ k)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b for 3-vectors (np.cross is slow on tiny arrays)."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+def _cross(a: np.ndarray, b: np.ndarray) -> list[float]:
+    """a x b for 3-vectors, in Python numbers (np.cross is slow on tiny arrays; the same
+    products and differences)."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return [a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0]

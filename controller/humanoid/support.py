@@ -38,9 +38,9 @@ class SupportState(enum.Enum):
     @property
     def feet(self) -> tuple[int, ...]:
         """Indices of the feet in contact (0 left, 1 right)."""
-        return {SupportState.LEFT: (0,), SupportState.RIGHT: (1,), SupportState.DOUBLE: (0, 1)}[
-            self
-        ]
+        if self is SupportState.DOUBLE:
+            return (0, 1)
+        return (0,) if self is SupportState.LEFT else (1,)
 
 
 class LqrContact(enum.Enum):

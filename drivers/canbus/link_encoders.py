@@ -222,6 +222,10 @@ class LinkEncoderReader:
         self._ft_parts = np.zeros(n_devices, dtype=np.int64)  # bit per TPDO received
         self._ft_answer_raw = np.zeros((n_ft, _FORCE_TORQUE_CHANNELS), dtype=np.int64)
         self._ft_raw = np.zeros((n_ft, _FORCE_TORQUE_CHANNELS), dtype=np.int64)
+        self._ft_offsets = [
+            (np.asarray(c.force_offset_n, dtype=float), np.asarray(c.torque_offset_nm, dtype=float))
+            for c in self.force_torque_configs
+        ]
         # Per-device state (index = position in self._devices).
         self._answered = np.zeros(n_devices, dtype=bool)
         self._answer_raw = np.zeros(n_devices, dtype=np.int64)
@@ -230,6 +234,7 @@ class LinkEncoderReader:
         self._unchanged = np.zeros(n_devices, dtype=np.int64)
         self._last_valid_time = np.full(n_devices, -np.inf)
         self._nmt_state = np.full(n_devices, _UNKNOWN_STATE, dtype=np.int64)
+        self._state_names: tuple[str, ...] | None = None  # of _nmt_state, until it changes
         self._last_heartbeat_time = np.full(n_devices, -np.inf)
         self._heartbeat_timeout_s = np.array(
             [
@@ -389,22 +394,24 @@ class LinkEncoderReader:
         if index is None:  # NMT heartbeat, EMCY, SDO: canopen's handlers (callbacks below)
             self._notify_canopen(msg)
             return
-        device = self._devices[index]
-        if device.is_force_torque:
+        if index >= self._ft_first:  # the force/torque sensors are the last devices
             self._dispatch_wrench(index, self._tpdo_part[msg.arbitration_id], msg)
             return
-        if len(msg.data) < 4:
+        data = msg.data
+        if len(data) < 4:
             self._events.append(
-                f"{device.label}: TPDO with {len(msg.data)} bytes ignored (expected 4)"
+                f"{self._devices[index].label}: TPDO with {len(data)} bytes ignored (expected 4)"
             )
             return
         if not self._sync_outstanding:
-            self._events.append(f"{device.label}: late TPDO discarded (answered an earlier SYNC)")
+            self._events.append(
+                f"{self._devices[index].label}: late TPDO discarded (answered an earlier SYNC)"
+            )
             return
         if not self._answered[index]:
             self._answered[index] = True
             self._n_answered += 1
-        self._answer_raw[index] = _INT32.unpack_from(msg.data)[0]
+        self._answer_raw[index] = _INT32.unpack_from(data)[0]
 
     def _dispatch_wrench(self, index: int, part: int, msg: can.Message) -> None:
         """One of a force/torque sensor's two TPDOs: three INTEGER16 channels."""
@@ -467,7 +474,9 @@ class LinkEncoderReader:
             self._events.append(
                 f"{device.label}: NMT state {_state_name(previous)} -> {_state_name(state)}"
             )
-        self._nmt_state[index] = state
+        if state != previous:
+            self._nmt_state[index] = state
+            self._state_names = None
         self._last_heartbeat_time[index] = self._clock()
 
     def _on_emcy(self, index: int, emcy: canopen.emcy.EmcyError) -> None:
@@ -481,9 +490,8 @@ class LinkEncoderReader:
         answered = self._answered
         changed = answered & self._have_raw & (self._answer_raw != self._raw)
         repeated = answered & self._have_raw & ~changed
-        self._unchanged = np.where(
-            repeated, self._unchanged + 1, np.where(answered, 0, self._unchanged)
-        )
+        self._unchanged += repeated  # a repeated count counts on, a new one starts again
+        self._unchanged[answered & ~repeated] = 0
         n = self._n_encoders
         new, before = self._answer_raw[:n], self._raw[:n]
         step = (new - before + _INT32_SPAN // 2) % _INT32_SPAN - _INT32_SPAN // 2
@@ -497,7 +505,9 @@ class LinkEncoderReader:
         stale = age_s > self._stale_after_s
         heartbeat_age_s = self._clock() - self._last_heartbeat_time
         heartbeat_lost = heartbeat_age_s > self._heartbeat_timeout_s
-        states = tuple(_state_name(int(state)) for state in self._nmt_state)
+        states = self._state_names
+        if states is None:
+            states = self._state_names = tuple(_state_name(int(s)) for s in self._nmt_state)
 
         angles = link_angle_rad_from_counts(
             self._counts,
@@ -571,11 +581,9 @@ class LinkEncoderReader:
         valid = bool(self._answered[index])
         if valid:
             self._ft_raw[sensor] = self._ft_answer_raw[sensor]
+            force_offset_n, torque_offset_nm = self._ft_offsets[sensor]
             force, torque = wrench_from_counts(
-                self._ft_raw[sensor],
-                device.si_per_count,
-                np.asarray(config.force_offset_n),
-                np.asarray(config.torque_offset_nm),
+                self._ft_raw[sensor], device.si_per_count, force_offset_n, torque_offset_nm
             )
         else:
             force = torque = np.full(3, np.nan)
@@ -781,6 +789,7 @@ class LinkEncoderReader:
                 )
         else:
             self._nmt_state[index] = _UNKNOWN_STATE  # no heartbeat: the state is not monitored
+            self._state_names = None
         for part, cob_id in enumerate(device.tpdo_cob_ids):
             self._tpdo_device[cob_id] = index
             self._tpdo_part[cob_id] = part

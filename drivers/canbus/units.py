@@ -29,8 +29,9 @@ def link_angle_rad_from_counts(
     """
     counts = np.asarray(raw_counts, dtype=np.float64)
     per_rev = np.asarray(counts_per_rev, dtype=np.float64)
-    wrapped = np.mod(counts + per_rev // 2, per_rev) - per_rev // 2
-    counts = np.where(single_turn, wrapped, counts)
+    if np.any(single_turn):  # (no multi-turn encoder needs the wrap)
+        wrapped = np.mod(counts + per_rev // 2, per_rev) - per_rev // 2
+        counts = np.where(single_turn, wrapped, counts)
     angle = np.asarray(direction) * ((2.0 * np.pi) * counts / per_rev - offset_rad)
     return float(angle) if np.ndim(angle) == 0 else angle
 

@@ -33,7 +33,6 @@ from dynamixel_sdk import (
     COMM_RX_TIMEOUT,
     COMM_SUCCESS,
     GroupSyncRead,
-    GroupSyncWrite,
     PacketHandler,
 )
 
@@ -100,6 +99,7 @@ class DynamixelChain:
         self.units = self.spec.units
         self.layout = StateBlockLayout(self.spec, config.indirect_first_index)
         self._decoder = self.layout.decoder()
+        self._block_size = self.layout.size
         self._joints = config.joints
         self._ids = config.dxl_ids
         self._index_of = {dxl_id: index for index, dxl_id in enumerate(self._ids)}
@@ -116,7 +116,12 @@ class DynamixelChain:
         self._io: DeviceIO | None = None
         self._sync_read: GroupSyncRead | None = None
         self._request_result: int | None = None  # request_state() sent, replies not collected
-        self._sync_write: GroupSyncWrite | None = None
+        # The SYNC_WRITE's parameters, [ID, 4 bytes of Goal Position] per device, built once:
+        # each tick changes only the goal bytes (`write_goals`).
+        self._goal_params = np.zeros((len(self._ids), 5), dtype=np.uint8)
+        self._goal_params[:, 0] = self._ids
+        self._goal_address = self.spec.item("Goal Position").address
+        self._writes_goals = False  # open and not read-only
         self._raw = np.zeros((len(self._ids), len(self.layout.items)), dtype=np.int64)
         self.devices: tuple[DeviceInfo, ...] = ()
         self.read_only = False
@@ -201,7 +206,7 @@ class DynamixelChain:
         self._io = None
         self._sync_read = None
         self._request_result = None
-        self._sync_write = None
+        self._writes_goals = False
         self._direct = None
         if port is not None and port.is_open:
             port.closePort()
@@ -251,7 +256,7 @@ class DynamixelChain:
             errors.append(reason)
             reasons.update(dict.fromkeys(self._ids, reason))
             return self._state_from_raw(raw, valid, alert, errors, reasons)
-        size = self.layout.size if self._direct is None else self._direct.size
+        size = self._block_size if self._direct is None else self._direct.size
         expected_length = size + 4  # LEN field: INST + ERR + data + CRC(2)
         pending = dict(self._index_of)
         corrupt = 0
@@ -311,17 +316,17 @@ class DynamixelChain:
         Limit error would be invisible. Goals inside the range map inside the device limits
         (they are rounded outwards, see `DynamixelJointConfig.device_position_limits_pulses`).
         """
-        self._require_writable("goal positions")
-        sync_write = self._sync_write
-        assert sync_write is not None
+        io = self._require_writable("goal positions")
+        assert self._writes_goals
         goal = np.asarray(goal_rad, dtype=np.float64)
         if goal.shape != self._min_rad.shape:
             raise ValueError(
                 f"write_goals needs one goal per joint, shape {self._min_rad.shape}, got shape "
                 f"{goal.shape}"
             )
-        out_of_range = ~(np.isfinite(goal) & (goal >= self._min_rad) & (goal <= self._max_rad))
-        if out_of_range.any():
+        inside = (goal >= self._min_rad) & (goal <= self._max_rad)  # False for NaN
+        if np.count_nonzero(inside) != inside.size:
+            out_of_range = ~inside
             details = "; ".join(
                 f"{self._labels[self._ids[index]]}: goal {float(goal[index])} rad outside "
                 f"[{float(self._min_rad[index])}, {float(self._max_rad[index])}]"
@@ -329,9 +334,11 @@ class DynamixelChain:
             )
             raise ValueError(f"goal position refused, nothing sent: {details}")
         pulses = rad_to_position(goal, self.units, self._direction, self._offset_rad)
-        for dxl_id, goal_pulses in zip(self._ids, pulses.tolist(), strict=True):
-            sync_write.changeParam(dxl_id, goal_pulses.to_bytes(4, "little", signed=True))
-        result = sync_write.txPacket()
+        params = self._goal_params  # the goals as little-endian INT32s after each ID
+        params[:, 1:] = pulses.astype("<i4").view(np.uint8).reshape(len(self._ids), 4)
+        result = self._packet.syncWriteTxOnly(
+            io.port, self._goal_address, 4, params.ravel().tolist(), params.size
+        )
         if result != COMM_SUCCESS:
             raise BusError(
                 f"sync write of Goal Position on {self.config.port} failed: "
@@ -376,10 +383,6 @@ class DynamixelChain:
         torque_item = self.spec.item("Torque Enable")
         for dxl_id in targets:
             io.write_item(dxl_id, goal_item, present[dxl_id])
-            if self._sync_write is not None:
-                self._sync_write.changeParam(
-                    dxl_id, present[dxl_id].to_bytes(4, "little", signed=True)
-                )
             try:
                 io.write_item(dxl_id, torque_item, 1)
             except DynamixelReplyError as exc:
@@ -569,24 +572,30 @@ class DynamixelChain:
         errors: list[str],
         reasons: dict[int, str],
     ) -> DynamixelState:
-        nan = np.nan
-        current_a = np.where(
-            valid, current_to_a(raw[:, _CURRENT], self.units, self._direction), nan
-        )
-        position_rad = position_to_rad(
-            raw[:, _POSITION], self.units, self._direction, self._offset_rad
-        )
-        velocity_rad_s = velocity_to_rad_s(raw[:, _VELOCITY], self.units, self._direction)
+        units, direction = self.units, self._direction
+        position_rad = position_to_rad(raw[:, _POSITION], units, direction, self._offset_rad)
+        velocity_rad_s = velocity_to_rad_s(raw[:, _VELOCITY], units, direction)
+        current_a = current_to_a(raw[:, _CURRENT], units, direction)
+        voltage_v = input_voltage_to_v(raw[:, _VOLTAGE])
+        temperature_c = raw[:, _TEMPERATURE].astype(np.float64)
+        hardware_error = raw[:, _HW_ERROR]
+        torque_enabled = raw[:, _TORQUE] != 0
+        if np.count_nonzero(valid) != valid.size:  # an entry not read is NaN (0, off)
+            invalid = ~valid
+            for values in (position_rad, velocity_rad_s, current_a, voltage_v, temperature_c):
+                values[invalid] = np.nan
+            hardware_error = np.where(valid, hardware_error, 0)
+            torque_enabled &= valid
         return DynamixelState(
             dxl_ids=self._ids,
-            position_rad=np.where(valid, position_rad, nan),
-            velocity_rad_s=np.where(valid, velocity_rad_s, nan),
+            position_rad=position_rad,
+            velocity_rad_s=velocity_rad_s,
             current_a=current_a,
-            torque_estimate_nm=current_a_to_torque_estimate_nm(current_a, self.units),
-            input_voltage_v=np.where(valid, input_voltage_to_v(raw[:, _VOLTAGE]), nan),
-            temperature_c=np.where(valid, raw[:, _TEMPERATURE].astype(np.float64), nan),
-            hardware_error=np.where(valid, raw[:, _HW_ERROR], 0).astype(np.uint8),
-            torque_enabled=valid & (raw[:, _TORQUE] != 0),
+            torque_estimate_nm=current_a_to_torque_estimate_nm(current_a, units),
+            input_voltage_v=voltage_v,
+            temperature_c=temperature_c,
+            hardware_error=hardware_error.astype(np.uint8),
+            torque_enabled=torque_enabled,
             alert=alert,
             valid=valid,
             errors=errors,
@@ -671,9 +680,6 @@ class DynamixelChain:
         )
         block = self.layout if self._direct is None else self._direct
         self._sync_read = GroupSyncRead(io.port, self._packet, block.data_start, block.size)
-        self._sync_write = GroupSyncWrite(
-            io.port, self._packet, self.spec.item("Goal Position").address, 4
-        )
+        self._writes_goals = True
         for dxl_id in self._ids:
             self._sync_read.addParam(dxl_id)
-            self._sync_write.addParam(dxl_id, bytes(4))

@@ -154,10 +154,11 @@ class RecordingClock(LoopClock):
     """Wraps the loop's clock and records, per tick, when it started (perf_counter) and what
     the clock said about it; preallocated, so recording costs no allocation in the loop.
 
-    grid_origin_s: perf_counter just before the first tick was asked for. The wall clock
-    anchors its grid when that call arrives, so `started_s[k] - (grid_origin_s + index * period)`
-    is the tick's lateness, overstated (never understated) by the few microseconds a
-    `next_tick()` call takes to return.
+    grid_origin_s: perf_counter just before the first tick was asked for, and again just
+    before the grid was re-anchored at the end of the start-up tick (`start_grid`). The wall
+    clock anchors its grid when that call arrives, so `started_s[k] - (grid_origin_s + index *
+    period)` is the tick's lateness from tick 1 on, overstated (never understated) by the few
+    microseconds a call takes to return.
     """
 
     def __init__(self, inner: LoopClock, capacity: int) -> None:
@@ -170,6 +171,7 @@ class RecordingClock(LoopClock):
         self.slack_s = np.full(capacity, math.nan)
         self.skipped = np.zeros(capacity, dtype=np.int64)
         self.count = 0
+        self._last_index = 0
 
     @property
     def deterministic(self) -> bool:
@@ -180,6 +182,7 @@ class RecordingClock(LoopClock):
             self.grid_origin_s = time.perf_counter()
         tick = self.inner.next_tick()
         started = time.perf_counter()
+        self._last_index = tick.index
         k = self.count
         if k < self.started_s.size:
             self.started_s[k] = started
@@ -189,6 +192,10 @@ class RecordingClock(LoopClock):
             self.skipped[k] = tick.skipped
         self.count += 1
         return tick
+
+    def start_grid(self) -> None:
+        self.grid_origin_s = time.perf_counter() - self._last_index * self.period_s
+        self.inner.start_grid()
 
     def recorded(self) -> slice:
         return slice(0, min(self.count, self.started_s.size))

@@ -2,7 +2,7 @@
 
 On the humanoid, Sm of (19) changes with the leg posture and with the LQR's contact (one sole or
 both), and the LQR gain designed on it must follow (the lab's code recomputes it in a background
-thread every 100 ms). A design runs in a worker thread, never inside a tick's compute:
+thread every 100 ms). A design runs in a worker process, never inside a tick's compute:
 
     lock-step   a design is requested at tick k from the posture measured at k and installed
                 at tick k + `lead_ticks` exactly (the tick waits for it only if it is not done
@@ -20,14 +20,29 @@ controller/lqr_designs.py: 1-6 ms for the lab's diagonal design, 5-30 ms for the
 the servo cascade on this machine), with one BLAS thread: on this 2-core machine a threaded BLAS
 made a 36-state DARE take 138 ms instead of 52 ms (docs/walking.md), and a single-threaded
 reduction is the same bits every run.
+
+Why a process and not a thread: a design is thousands of small numpy and pinocchio calls that
+hold the interpreter's lock between them. In a thread it made the loop wait for the lock each
+time the loop's thread came back from the kernel (a reply arrived, a sleep ended): measured on
+this machine, a 5 ms loop woke 1.6-2.9 ms late (median) while a design ran beside it, 0.13 ms
+otherwise; with the design in a process, 0.19-0.25 ms. The worker is forked from the loop's
+process when the scheduler is built (it has the robot model and the designer as they are then,
+and keeps the designer's warm start between designs); requests and gains travel through a pipe
+(`_DesignProcess`). Where fork is not available, the designs run in a thread as before.
 Each design's latency (request to use) and compute time are recorded for the summary.
 """
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import pickle
+import signal
 import threading
 import time
 from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -35,6 +50,7 @@ from threadpoolctl import threadpool_limits
 from controller import JointController
 from controller.lqr import TrackingGain
 from hil.loop.robot_model import RobotModel
+from hil.output.log_process import never_preempt_the_loop
 
 LOCKSTEP_LEAD_TICKS = 4  # a design requested at tick k is in force from tick k + 4 (20 ms)
 
@@ -77,8 +93,136 @@ class GainSchedule:
         }
 
 
+Design = tuple["TrackingGain | Exception", float]  # the gain (or why not) and its compute time
+
+
+class _DesignProcess:
+    """The designs in a forked child process; requests and gains through a pipe."""
+
+    def __init__(self, robot: RobotModel, designer: Any) -> None:
+        context = multiprocessing.get_context("fork")
+        self._connection, child = context.Pipe()
+        self._process = context.Process(
+            target=_serve, args=(child, robot, designer), name="gain-designer", daemon=True
+        )
+        self._process.start()
+        child.close()
+        self._ended = False
+
+    def submit(self, link_angle_rad: np.ndarray, contact: object) -> None:
+        try:
+            self._connection.send((link_angle_rad, contact))
+        except OSError:  # it has ended: `result` says so
+            self._ended = True
+
+    def done(self) -> bool:
+        return self._ended or self._connection.poll()
+
+    def result(self) -> Design:
+        """The design submitted last (waits for it)."""
+        if not self._ended:
+            try:
+                return self._connection.recv()
+            except (EOFError, OSError):
+                self._ended = True
+        self._process.join(timeout=1.0)
+        code = self._process.exitcode
+        return RuntimeError(f"the gain designer's process ended (exit code {code})"), 0.0
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):  # (it may have ended already)
+            self._connection.send(None)
+        self._process.join(timeout=5.0)
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join(timeout=1.0)
+        self._connection.close()
+
+
+def _serve(connection: Connection, robot: RobotModel, designer: Any) -> None:
+    """The designer process: one design per request, until None or the loop's end of the pipe
+    closes. Ctrl-C is the loop's to handle (it closes the scheduler)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    never_preempt_the_loop()
+    with threadpool_limits(limits=1, user_api="blas"):
+        while True:
+            try:
+                request = connection.recv()
+            except (EOFError, OSError):
+                return
+            if request is None:
+                return
+            gain, compute_s = _design(robot, designer, *request)
+            try:
+                connection.send((gain, compute_s))
+            except (pickle.PicklingError, TypeError, AttributeError):  # an exception that
+                # cannot travel: its text does
+                connection.send((RuntimeError(f"{type(gain).__name__}: {gain}"), compute_s))
+
+
+def _design(
+    robot: RobotModel, designer: Any, link_angle_rad: np.ndarray, contact: object
+) -> Design:
+    started = time.perf_counter()
+    try:
+        gain: TrackingGain | Exception = designer.design(robot.sm(link_angle_rad, contact))
+    except Exception as exc:  # noqa: BLE001 - handed to the loop, raised there
+        gain = exc
+    return gain, time.perf_counter() - started
+
+
+class _DesignThread:
+    """The designs in a thread (where fork is not available): the same interface."""
+
+    def __init__(self, robot: RobotModel, designer: Any) -> None:
+        self._robot, self._designer = robot, designer
+        self._request: tuple[np.ndarray, object] | None = None
+        self._done: Design | None = None
+        self._closed = False
+        self._wake = threading.Condition()
+        self._thread = threading.Thread(target=self._work, name="gain-scheduler", daemon=True)
+        self._thread.start()
+
+    def submit(self, link_angle_rad: np.ndarray, contact: object) -> None:
+        with self._wake:
+            self._request, self._done = (link_angle_rad, contact), None
+            self._wake.notify()
+
+    def done(self) -> bool:
+        with self._wake:
+            return self._done is not None
+
+    def result(self) -> Design:
+        with self._wake:
+            while self._done is None and not self._closed:
+                self._wake.wait()
+            done, self._done = self._done, None
+        return done if done is not None else (RuntimeError("the gain scheduler closed"), 0.0)
+
+    def close(self) -> None:
+        with self._wake:
+            self._closed = True
+            self._wake.notify_all()
+        self._thread.join(timeout=5.0)
+
+    def _work(self) -> None:
+        while True:
+            with self._wake:
+                while self._request is None and not self._closed:
+                    self._wake.wait()
+                if self._closed:
+                    return
+                request, self._request = self._request, None
+            done = _design(self._robot, self._designer, *request)
+            with self._wake:
+                self._done = done
+                self._wake.notify_all()
+
+
 class GainScheduler:
-    """See the module docstring. `controller` must be an LQR controller (`set_lqr_gain`)."""
+    """See the module docstring. `controller` must be an LQR controller (`set_lqr_gain`).
+
+    wall_clock: install a design when it is done (else on its due tick, waiting for it)."""
 
     def __init__(
         self,
@@ -87,26 +231,23 @@ class GainScheduler:
         period_s: float,
         reschedule_s: float,
         *,
-        threaded: bool,
+        wall_clock: bool,
         lead_ticks: int = LOCKSTEP_LEAD_TICKS,
     ) -> None:
         self.robot = robot
         self.controller = controller
         self.period_s = period_s
         self.period_ticks = max(1, round(reschedule_s / period_s))
-        self.threaded = threaded  # wall clock: install when done; lock-step: on the due tick
+        self.wall_clock = wall_clock
         self.lead_ticks = max(1, int(lead_ticks))
         self.schedule = GainSchedule()
-        self._designer = controller.params.gain_designer(period_s)  # type: ignore[attr-defined]
+        designer = controller.params.gain_designer(period_s)  # type: ignore[attr-defined]
         self._requested_contact: object = None
         self._last_request_tick: int | None = None
         self._pending: _Request | None = None  # handed to the worker, not yet installed
-        self._done: tuple[_Request, TrackingGain | Exception, float] | None = None
-        self._wake = threading.Condition()
-        self._closed = False
         self._blas = threadpool_limits(limits=1, user_api="blas")
-        self._thread = threading.Thread(target=self._work, name="gain-scheduler", daemon=True)
-        self._thread.start()
+        fork = "fork" in multiprocessing.get_all_start_methods()
+        self._worker = (_DesignProcess if fork else _DesignThread)(robot, designer)
 
     def update(
         self, tick: int, link_angle_rad: np.ndarray, contact: object, contact_ahead: object
@@ -117,9 +258,11 @@ class GainScheduler:
         if self._requested_contact is None:
             self._requested_contact = contact  # the controller was built for it
         self._install(tick)
-        if self._pending is not None or not np.isfinite(link_angle_rad).all():
+        if self._pending is not None or np.count_nonzero(np.isfinite(link_angle_rad)) != len(
+            link_angle_rad
+        ):
             return
-        wanted = contact_ahead if not self.threaded else contact
+        wanted = contact if self.wall_clock else contact_ahead
         periodic = self._last_request_tick is None or (
             tick - self._last_request_tick >= self.period_ticks
         )
@@ -127,71 +270,32 @@ class GainScheduler:
             return
         self._last_request_tick = tick
         self._requested_contact = wanted
-        request = _Request(
-            np.array(link_angle_rad, dtype=float),
-            wanted,
-            time.perf_counter(),
-            tick + self.lead_ticks,
-        )
-        with self._wake:
-            self._pending = request
-            self._wake.notify()
+        link = np.array(link_angle_rad, dtype=float)
+        self._pending = _Request(link, wanted, time.perf_counter(), tick + self.lead_ticks)
+        self._worker.submit(link, wanted)
 
     def close(self) -> None:
-        with self._wake:
-            self._closed = True
-            self._wake.notify()
-        self._thread.join(timeout=5.0)
+        self._worker.close()
         self._blas.restore_original_limits()
 
     def _install(self, tick: int) -> None:
         pending = self._pending
         if pending is None:
             return
-        if self.threaded:
-            with self._wake:
-                done = self._done
-            if done is None:
+        if self.wall_clock:
+            if not self._worker.done():
                 return
+            gain, compute_s = self._worker.result()
         else:
             if tick < pending.due_tick:
                 return
             started = time.perf_counter()
-            with self._wake:
-                while self._done is None and not self._closed:
-                    self._wake.wait()
-                done = self._done
+            gain, compute_s = self._worker.result()
             self.schedule.waited_s.append(time.perf_counter() - started)
-            if done is None:
-                return
-        with self._wake:
-            self._done = None
-            self._pending = None
-        request, gain, compute_s = done
+        self._pending = None
         if isinstance(gain, Exception):  # the design failed: say so on the loop's thread
             raise gain
         self.controller.set_lqr_gain(gain)  # type: ignore[attr-defined]
         self.schedule.designs += 1
-        self.schedule.latencies_s.append(time.perf_counter() - request.requested_s)
+        self.schedule.latencies_s.append(time.perf_counter() - pending.requested_s)
         self.schedule.compute_s.append(compute_s)
-
-    def _work(self) -> None:
-        while True:
-            with self._wake:
-                while (self._pending is None or self._done is not None) and not self._closed:
-                    self._wake.wait()
-                if self._closed:
-                    return
-                request = self._pending
-            assert request is not None
-            started = time.perf_counter()
-            gain: TrackingGain | Exception
-            try:
-                sm = self.robot.sm(request.link_angle_rad, request.contact)
-                gain = self._designer.design(sm)
-            except Exception as exc:  # noqa: BLE001 - handed to the loop, raised there
-                gain = exc
-            compute_s = time.perf_counter() - started
-            with self._wake:
-                self._done = (request, gain, compute_s)
-                self._wake.notify_all()

@@ -15,6 +15,7 @@ Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends
                 plus the experiment's own goal offsets, with no controller
     STOP        hold the last goal; then the configured exit torque state
 Every tick reads the bus once, so in lock-step emulation tick k is the plant at k periods.
+Tick 0 has no deadline: the wall clock's grid starts when it ends (`LoopClock.start_grid`).
 
 When the supervisor latches torque_off, the loop turns torque off at once; if the bus does not
 take it (a silent device), it tries again every DISABLE_RETRY_TICKS ticks, not every tick (each
@@ -23,8 +24,11 @@ try costs the driver's timeouts), and on the tick the actuators answer again.
 Every exit path - the end, Ctrl-C, SIGTERM, an exception in the controller or the bus - goes
 through the same `finally`: the configured exit torque state is applied (best effort on every
 joint, whatever the bus raises), the bus is closed, summary.json is written, and the log files
-are closed. The log is line-buffered, so what was logged before a crash is on disk (a tick's rows
-are written during the next tick, see `_keep_record`).
+are closed. The log is written by a process of its own (hil/output/log_process.py), which has
+every tick's rows at the end of that tick and writes what it has when this process ends, however
+it ends; a writer that ends before the run stops the run like a lost bus. With the live view the
+log stays in this process, line-buffered, a tick's rows written during the next tick (see
+`_keep_record`).
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ from hil.loop.request import RunRequest, StopFlag
 from hil.loop.robot_model import robot_model
 from hil.loop.start_gate import StartRefused, start_gate
 from hil.loop.timeline import Phase, Timeline
+from hil.output.log_process import LogWriterLost, open_run_log
 from hil.output.records import RunResult
 from hil.output.rundir import load_run
 from hil.output.runlog import RunLog
@@ -68,6 +73,7 @@ REFERENCE_AHEAD_TICKS = 12_000
 # vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
 # (serial.SerialException is an OSError).
 LOST_BUS_ERRORS = (BusError, can.CanError, OSError)
+_STATE_NAMES = {state: state.name.lower() for state in SafeState}  # as log.csv writes them
 
 
 @dataclass
@@ -135,7 +141,7 @@ class Loop:
                 self.controller,
                 self.period,
                 config.model.gain_reschedule_period_s,
-                threaded=not clock.deterministic,
+                wall_clock=not clock.deterministic,
             )
         self._support: object = None
         self._kdist: np.ndarray | None = None
@@ -144,7 +150,7 @@ class Loop:
         self._open_loop = self._open_loop_offsets(config.safety.max_goal_rate_rad_s)
         self.feedback = None if self._open_loop is not None else self._reference_feedback()
         self._goal_base: np.ndarray | None = None  # an open-loop experiment's goals start here
-        self.log = RunLog(
+        self.log = open_run_log(
             request.out_dir,
             config.joint_names,
             meta,
@@ -152,7 +158,11 @@ class Loop:
             mcap=request.mcap,
             sinks=request.sinks,
         )
+        # Formatting the rows here: during the next tick's bus wait. The log writer's process
+        # formats them: handed over at the end of their own tick (see `_write_kept_record`).
+        self._rows_in_wait = isinstance(self.log, RunLog)
         self._kept: tuple[tuple, tuple] | None = None  # the last tick's rows, not yet written
+        self._handed_over_s = 0.0  # how long handing the last tick's rows over took
         self.homing: HomingPlan | None = None
         self.references = np.zeros((0, n))  # a ring: tick k's row is at k % len
         self._reference_filled = 0  # the first tick whose row is not in the ring yet
@@ -218,6 +228,8 @@ class Loop:
                 break
             self._cycle(tick)
             self.ticks_done = tick.index + 1
+            if tick.index == 0:  # the start-up tick is not paced (hil/loop/clock.py)
+                self.clock.start_grid()
         first = self.supervisor.first_trip
         if first is not None:
             self.ending = RunEnding(Termination.SAFETY_STOP, f"{first.cause} ({first.action})")
@@ -226,11 +238,12 @@ class Loop:
         k = tick.index
         t_read = time.perf_counter()
         self.bus.start_read()
-        try:
-            log_s = self._write_kept_record()  # the last tick's rows, while the answers travel
+        try:  # the last tick's rows, while the answers travel
+            wait_log_s = self._write_kept_record() if self._rows_in_wait else 0.0
         finally:  # whatever happened, the answers are collected: no transaction left open
             sample = self.bus.finish_read()
         t_compute = time.perf_counter()
+        log_s = wait_log_s if self._rows_in_wait else self._handed_over_s
         if k == 0:
             sample = self._start(sample)
         self._watch(tick, sample)
@@ -246,8 +259,10 @@ class Loop:
             self._last_goal = goal
         self._log_safety()
         t_done = time.perf_counter()
-        timing = (k, t_compute - t_read - log_s, t_done - t_compute, 0.0, log_s, tick.time_s)
+        timing = (k, t_compute - t_read - wait_log_s, t_done - t_compute, 0.0, log_s, tick.time_s)
         self._keep_record(tick, sample, reference, goal, phase, timing)
+        if not self._rows_in_wait:  # the writer's process has them now: nothing to lose
+            self._handed_over_s = self._write_kept_record()
         self._reference_ahead(k)
         on_progress = self.request.on_progress
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
@@ -374,7 +389,12 @@ class Loop:
             return self._hold_goal, reference
         if phase is Phase.HOMING:
             return reference, reference  # the actuator's own servo follows the ramp
-        if self.supervisor.safe or not sample.motor_valid.all() or not np.isfinite(link).all():
+        n = self.n
+        if (
+            self.supervisor.safe
+            or np.count_nonzero(sample.motor_valid) != n
+            or np.count_nonzero(np.isfinite(link)) != n
+        ):
             return None, reference
         if self._open_loop is not None:
             return self._open_loop_goal(k), reference
@@ -442,10 +462,12 @@ class Loop:
 
     # --- the record ----------------------------------------------------------------------------
     # A tick's log.csv and timing.csv rows are kept (`_keep_record`: nothing it keeps is changed
-    # in place later) and written during the next tick, between sending the bus requests and
-    # collecting the answers: formatting a row costs ~0.4 ms (1 joint) to ~0.9 ms (12), time
-    # the answers spend travelling anyway. The last tick's rows are written by `_finish`, on
-    # every exit path; a process killed outright loses the last tick's rows.
+    # in place later). The log writer's process gets them at the end of the tick (~20 us for
+    # the humanoid's ~220 numbers). A log in this process (the live view) writes them during
+    # the next tick, between sending the bus requests and collecting the answers: formatting
+    # them costs ~0.3-0.4 ms on the humanoid, time the answers spend travelling anyway; the
+    # last tick's rows are written by `_finish` on every exit path, and a process killed
+    # outright loses them.
     def _keep_record(
         self,
         tick: Tick,
@@ -463,7 +485,7 @@ class Loop:
             tick.index,
             tick.time_s,
             sensors,
-            self.supervisor.state.name.lower(),
+            _STATE_NAMES[self.supervisor.state],
             phase.value,
             tick.skipped,
             (
@@ -494,9 +516,7 @@ class Loop:
         if kept is None:
             return 0.0
         started = time.perf_counter()
-        row, timing = kept
-        self.log.write_row(*row)
-        self.log.write_timing(*timing)
+        self.log.write_tick(*kept)
         return time.perf_counter() - started
 
     def _log_safety(self) -> None:
@@ -568,7 +588,11 @@ class Loop:
         return notes
 
     def _finish(self, wall_time_s: float) -> None:
-        self._write_kept_record()
+        try:
+            self._write_kept_record()
+        except LogWriterLost as exc:  # the rows of the end are lost with the writer: say so
+            if self.ending.ok:
+                self.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
         if self.scheduler is not None:
             self.scheduler.close()
         self._log_safety()

@@ -28,6 +28,7 @@ The per-tick path formats into preallocated lists: no dictionaries or arrays are
 from __future__ import annotations
 
 import csv
+import json
 import math
 import time
 from collections.abc import Sequence
@@ -37,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from hil.output import channels as ch
-from hil.output.channels import Channel, ChannelSet, MessageSink, encode, encode_document
+from hil.output.channels import Channel, ChannelSet, MessageSink, encode_document
 from hil.output.strict_json import dumps, plain
 
 PER_JOINT_COLUMNS = (
@@ -98,6 +99,15 @@ def _json_cells(column: str, cells: list[str]) -> list[str]:
     if column in ch.BOOL_COLUMNS:
         return ["true" if cell == "1" else "false" for cell in cells]
     return ["null" if cell in _NOT_A_NUMBER else cell for cell in cells]
+
+
+def _json_number(cell: str) -> str:
+    """A numeric log cell as a JSON value: NaN and infinity null."""
+    return "null" if cell in _NOT_A_NUMBER else cell
+
+
+def _json_string(text: str) -> str:
+    return json.dumps(text)
 
 
 def joint_column(name: str, joint: str, n_joints: int) -> str:
@@ -204,27 +214,37 @@ class RunLog:
         self._log.writerow(row)
         self.rows += 1
         if self._sinks:
-            head = {"tick": int(tick), "time_s": float(time_s)}
-            loop = {
-                **head,
-                **dict(zip(self.sensor_columns, map(float, sensors), strict=True)),
-                "supervisor_state": supervisor_state,
-                "phase": phase,
-                "skipped_ticks": int(skipped_ticks),
-                "slack_s": float(slack_s),
-                "measured_period_s": float(measured_period_s),
-            }
-            self.publish(self.channels.joints, time_s, self._joints_message(head, cells))
-            self.publish(self.channels.loop, time_s, encode(loop))
+            self.publish(self.channels.joints, time_s, self._joints_message(row, cells))
+            self.publish(self.channels.loop, time_s, self._loop_message(row))
 
-    def _joints_message(self, head: dict[str, Any], cells: list[list[str]]) -> bytes:
+    def _joints_message(self, row: list[str], cells: list[list[str]]) -> bytes:
         """The /joints message from the row's own cells (the log's values, to 9 decimals):
         formatting ~180 numbers once, not again for JSON. A value not read is null."""
         arrays = ",".join(
             f'"{column}":[{",".join(_json_cells(column, column_cells))}]'
             for column, column_cells in zip(PER_JOINT_COLUMNS, cells, strict=True)
         )
-        return f"{encode(head)[:-1].decode()},{arrays}}}".encode()
+        return f'{{"tick":{row[0]},"time_s":{_json_number(row[1])},{arrays}}}'.encode()
+
+    def _loop_message(self, row: list[str]) -> bytes:
+        """The /loop message from the row's own cells, as /joints (the log's values)."""
+        m = len(self.sensor_columns)
+        sensors = "".join(
+            f'"{name}":{_json_number(cell)},'
+            for name, cell in zip(self.sensor_columns, row[2 : 2 + m], strict=True)
+        )
+        state, phase, skipped = row[2 + m : 5 + m]
+        return (
+            f'{{"tick":{row[0]},"time_s":{_json_number(row[1])},{sensors}'
+            f'"supervisor_state":{_json_string(state)},"phase":{_json_string(phase)},'
+            f'"skipped_ticks":{skipped},"slack_s":{_json_number(row[-2])},'
+            f'"measured_period_s":{_json_number(row[-1])}}}'
+        ).encode()
+
+    def write_tick(self, row: tuple, timing: tuple) -> None:
+        """One tick's rows: `write_row(*row)` and `write_timing(*timing)`."""
+        self.write_row(*row)
+        self.write_timing(*timing)
 
     def write_timing(
         self,
@@ -238,14 +258,16 @@ class RunLog:
         """One tick's durations; log_s: writing the previous tick's rows during this tick's
         bus read (not part of read_s)."""
         cycle = read_s + compute_s + write_s
-        self._timing_file.write(
-            f"{tick},{read_s:.7f},{compute_s:.7f},{write_s:.7f},{cycle:.7f},{log_s:.7f}\n"
-        )
-        if self._sinks:
-            values = (read_s, compute_s, write_s, log_s, cycle)
-            message = {"tick": int(tick), **dict(zip(ch.TIMING_FIELDS, values, strict=True))}
+        cells = [f"{value:.7f}" for value in (read_s, compute_s, write_s, cycle, log_s)]
+        self._timing_file.write(f"{tick},{','.join(cells)}\n")
+        if self._sinks:  # the message from the row's cells (7 decimals), in TIMING_FIELDS order
+            read, compute, write, cycle_cell, log = (_json_number(cell) for cell in cells)
+            message = (
+                f'{{"tick":{int(tick)},"read_s":{read},"compute_s":{compute},'
+                f'"write_s":{write},"log_s":{log},"cycle_s":{cycle_cell}}}'
+            )
             when = time_s if math.isfinite(time_s) else (self._last_ns - self._start_ns) / 1e9
-            self.publish(self.channels.timing, when, encode(message))
+            self.publish(self.channels.timing, when, message.encode())
 
     def event(self, time_s: float, kind: str, message: str, **fields: Any) -> None:
         record = {"time_s": round(time_s, 6), "kind": kind, "message": message, **fields}

@@ -13,37 +13,62 @@ LinkNoiseWatch  the link reading jumps back and forth (sign-alternating second d
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from drivers.joint_bus import JointSample
+from hil.safety.alternation import (
+    AlternationCounter,
+    CounterPart,
+    SecondDifference,
+    scaled_second_difference,
+)
 from hil.safety.watches import Reporter, Watch, WatchContext
 from hil.vocabulary import NoticeKind, SafetyCause
 
 
-@dataclass
 class LinkHistory:
-    """What the link watches remember of one joint's readings between ticks."""
+    """What the link watches remember of every joint's readings between ticks (arrays over the
+    joints). `uniform`: every joint's last two readings were taken together, at `instants_s`
+    (before, last)."""
 
-    last_rad: float = math.nan
-    before_rad: float = math.nan
-    last_sampled_s: float = math.nan
-    sampled_before_s: float = math.nan
+    def __init__(self, n_joints: int) -> None:
+        self.last_rad = np.full(n_joints, math.nan)
+        self.before_rad = np.full(n_joints, math.nan)
+        self.last_sampled_s = np.full(n_joints, math.nan)
+        self.sampled_before_s = np.full(n_joints, math.nan)
+        self.instants_s = (math.nan, math.nan)
+        self._together = 0  # pushes in a row that took every joint (up to 2)
 
-    def forget(self) -> None:
-        """A gap in the readings: differences across it would mean nothing."""
-        self.last_rad = math.nan
-        self.before_rad = math.nan
+    @property
+    def uniform(self) -> bool:
+        return self._together >= 2
 
-    def push(self, link: float, sampled_s: float) -> None:
-        self.before_rad, self.last_rad = self.last_rad, link
-        self.sampled_before_s, self.last_sampled_s = self.last_sampled_s, sampled_s
+    def forget(self, joints: np.ndarray) -> None:
+        """A gap in the readings of these joints (a mask): differences across it would mean
+        nothing."""
+        self.last_rad[joints] = math.nan
+        self.before_rad[joints] = math.nan
+
+    def push(self, joints: np.ndarray, link: np.ndarray, sampled_s: float, every: bool) -> None:
+        """The readings of these joints (a mask; `every`: all of them) at `sampled_s`."""
+        if every:  # the oldest arrays take the newest values: no allocation
+            self.before_rad, self.last_rad = self.last_rad, self.before_rad
+            self.last_rad[:] = link
+            self.sampled_before_s, self.last_sampled_s = self.last_sampled_s, self.sampled_before_s
+            self.last_sampled_s.fill(sampled_s)
+            self.instants_s = (self.instants_s[1], sampled_s)
+            self._together = min(self._together + 1, 2)
+            return
+        self.before_rad[joints] = self.last_rad[joints]
+        self.last_rad[joints] = link[joints]
+        self.sampled_before_s[joints] = self.last_sampled_s[joints]
+        self.last_sampled_s[joints] = sampled_s
+        self._together = 0
 
 
 class LinkStaleWatch(Watch):
-    def __init__(self, context: WatchContext, history: Sequence[LinkHistory]) -> None:
+    def __init__(self, context: WatchContext, history: LinkHistory) -> None:
         super().__init__(context)
         n = context.n_joints
         self.history = history
@@ -51,35 +76,58 @@ class LinkStaleWatch(Watch):
         self.bad_total = np.zeros(n, dtype=int)
         self.frozen_ticks = np.zeros(n, dtype=int)
         self.motor_at_freeze_rad = np.full(n, math.nan)
+        self._streak = False  # some joint is in a streak of missing readings
 
     def observe(self, sample: JointSample, report: Reporter) -> None:
-        for i in range(self.context.n_joints):
-            if sample.link_valid[i]:
-                self._fresh(sample, report, i)
-            else:
-                self._missing(sample, report, i)
-
-    def _missing(self, sample: JointSample, report: Reporter, i: int) -> None:
         s = self.context.safety
-        self.bad_ticks[i] += 1
-        self.bad_total[i] += 1
-        self.history[i].forget()
-        self.frozen_ticks[i] = 0
-        if self.bad_ticks[i] >= s.link_stale_ticks:
-            report.trip(
-                SafetyCause.LINK_STALE,
-                i,
-                f"{self.context.devices[i].link_sensor}: no fresh position for "
-                f"{self.bad_ticks[i]} ticks (last one {sample.link_age_s[i]:.3f} s ago)",
-            )
+        valid = sample.link_valid
+        every = np.count_nonzero(valid) == valid.size
+        missing = np.logical_not(valid)
+        stale = None
+        if self._streak or not every:
+            self._glitches(valid, report)
+            self.bad_ticks *= missing
+            self.bad_ticks += missing
+            self.bad_total += missing
+            self.history.forget(missing)
+            self.frozen_ticks *= valid
+            self._streak = not every
+            stale = missing & (self.bad_ticks >= s.link_stale_ticks)
+        # A fresh reading equal to the last one: the link did not move, or the counter hung.
+        link, motor = sample.link_angle_rad, sample.motor_angle_rad
+        same = link == self.history.last_rad  # NaN (after a gap) is never the same
+        if not every:
+            same &= valid
+        frozen = None
+        if np.count_nonzero(same):
+            self.frozen_ticks *= missing | same
+            starting = same & (self.frozen_ticks == 0)
+            self.motor_at_freeze_rad[starting] = motor[starting]
+            self.frozen_ticks += same
+            # A frozen reading while the motor turns far: a hung counter. A link blocked by an
+            # obstacle also reads constant while the motor winds the gear up, but the windup
+            # stops where the gear torque K x windup meets the actuator's torque limit
+            # (48 N m / 2000 N m/rad = 0.024 rad on the testbed), below half the deflection
+            # bound (0.03 rad); and beyond the bound the deflection watch fires anyway.
+            frozen = same & (self.frozen_ticks >= s.link_stale_ticks)
+            if np.count_nonzero(frozen):
+                moved = np.where(sample.motor_valid, np.abs(motor - self.motor_at_freeze_rad), 0.0)
+                frozen &= moved > 0.5 * s.max_deflection_rad
+        else:
+            self.frozen_ticks.fill(0)
+        if stale is None and frozen is None:
+            return
+        trips = stale if frozen is None else frozen if stale is None else stale | frozen
+        for i in np.flatnonzero(trips).tolist():
+            self._trip(sample, report, i)
 
-    def _fresh(self, sample: JointSample, report: Reporter, i: int) -> None:
+    def _glitches(self, valid: np.ndarray, report: Reporter) -> None:
+        """Notices for the joints that answered again after a streak without a reading."""
         s = self.context.safety
-        sensor = self.context.devices[i].link_sensor
-        if self.bad_ticks[i]:
+        for i in np.flatnonzero(valid & (self.bad_ticks > 0)).tolist():
             streak = (
-                f"{sensor}: {self.bad_ticks[i]} tick(s) without a fresh position, then it "
-                "answered again"
+                f"{self.context.devices[i].link_sensor}: {self.bad_ticks[i]} tick(s) without a "
+                "fresh position, then it answered again"
             )
             if self.bad_ticks[i] < s.link_stale_ticks:
                 message = f"{streak}: tolerated (link_stale_ticks = {s.link_stale_ticks})"
@@ -88,60 +136,24 @@ class LinkStaleWatch(Watch):
                 report.notice(
                     NoticeKind.LINK_RECOVERED, i, f"{streak}; the safe state stays latched"
                 )
-        self.bad_ticks[i] = 0
-        link = float(sample.link_angle_rad[i])
-        motor = float(sample.motor_angle_rad[i])
-        if link != self.history[i].last_rad:
-            self.frozen_ticks[i] = 0
-            return
-        if self.frozen_ticks[i] == 0:
-            self.motor_at_freeze_rad[i] = motor
-        self.frozen_ticks[i] += 1
-        # A frozen reading while the motor turns far: a hung counter. A link blocked by an
-        # obstacle also reads constant while the motor winds the gear up, but the windup stops
-        # where the gear torque K x windup meets the actuator's torque limit (48 N m / 2000
-        # N m/rad = 0.024 rad on the testbed), below half the deflection bound (0.03 rad); and
-        # beyond the bound the deflection watch fires anyway.
-        moved = abs(motor - self.motor_at_freeze_rad[i]) if sample.motor_valid[i] else 0.0
-        if self.frozen_ticks[i] >= s.link_stale_ticks and moved > 0.5 * s.max_deflection_rad:
+
+    def _trip(self, sample: JointSample, report: Reporter, i: int) -> None:
+        sensor = self.context.devices[i].link_sensor
+        if not sample.link_valid[i]:
             report.trip(
                 SafetyCause.LINK_STALE,
                 i,
-                f"{sensor}: position frozen for {self.frozen_ticks[i]} ticks while the motor "
-                f"moved {moved:.4f} rad",
+                f"{sensor}: no fresh position for {self.bad_ticks[i]} ticks (last one "
+                f"{sample.link_age_s[i]:.3f} s ago)",
             )
-
-
-class AlternationCounter:
-    """Per joint, how many of the last `window` ticks had a second difference above
-    `threshold` whose sign is opposite to the previous tick's (a reading that jumps back and
-    forth; a physical motion's second difference changes sign only where its acceleration
-    does, a few times per oscillation)."""
-
-    def __init__(self, n_joints: int, window: int, threshold: float) -> None:
-        self.threshold = threshold
-        self.jumps = np.zeros((n_joints, window), dtype=bool)
-        self.count = np.zeros(n_joints, dtype=int)
-        self.index = np.zeros(n_joints, dtype=int)
-        self.last = np.zeros(n_joints)
-
-    @property
-    def window(self) -> int:
-        return self.jumps.shape[1]
-
-    def add(self, joint: int, second_difference: float) -> int:
-        """Count this tick's second difference; returns the joint's count over the window."""
-        jump = abs(second_difference) > self.threshold and second_difference * self.last[joint] < 0
-        slot = self.index[joint]
-        self.count[joint] += int(jump) - int(self.jumps[joint, slot])
-        self.jumps[joint, slot] = jump
-        self.index[joint] = (slot + 1) % self.window
-        self.last[joint] = second_difference
-        return int(self.count[joint])
-
-    def reset_sign(self, joint: int) -> None:
-        """A gap in the readings: the next difference has no previous sign to alternate with."""
-        self.last[joint] = 0.0
+            return
+        moved = abs(float(sample.motor_angle_rad[i]) - self.motor_at_freeze_rad[i])
+        report.trip(
+            SafetyCause.LINK_STALE,
+            i,
+            f"{sensor}: position frozen for {self.frozen_ticks[i]} ticks while the motor "
+            f"moved {moved:.4f} rad",
+        )
 
 
 class LinkNoiseWatch(Watch):
@@ -174,57 +186,96 @@ class LinkNoiseWatch(Watch):
     (not increasing), the plain second difference is used.
     """
 
-    def __init__(self, context: WatchContext, history: Sequence[LinkHistory]) -> None:
+    def __init__(self, context: WatchContext, history: LinkHistory) -> None:
         super().__init__(context)
         n = context.n_joints
         s = context.safety
         window, threshold = s.link_noise_window_ticks, s.link_noise_jump_rad
         self.history = history
-        self.link = AlternationCounter(n, window, threshold)
-        self.motor = AlternationCounter(n, window, threshold)
+        # the motor's and the link's counts in one counter: joints 0..n-1 and n..2n-1
+        self._signals = AlternationCounter(2 * n, window, threshold)
+        self.motor = CounterPart(self._signals, slice(0, n))
+        self.link = CounterPart(self._signals, slice(n, 2 * n))
         self.goal = AlternationCounter(n, window, threshold)
-        self._motor = [_Trace() for _ in range(n)]
-        self._goal = [_Trace() for _ in range(n)]
+        self._motor = SecondDifference(n)
+        self._goal = SecondDifference(n)
         self.trip_count = math.ceil(s.link_noise_fraction * window)
         self.reported = np.zeros(n, dtype=bool)
+        self._motor_reading = np.zeros(n)
+        self._second = np.zeros(2 * n)  # this tick's second differences: motor, link
+        self._added = np.zeros(2 * n, dtype=bool)
+        self._scratch = np.zeros(n)
 
     def note_goal(self, goal_rad: np.ndarray) -> None:
         """The goal the supervisor sent this tick (its alternation is reported with a trip)."""
-        for i, goal in enumerate(np.asarray(goal_rad, dtype=float)):
-            second = self._goal[i].second_difference(float(goal), math.nan, self.context.period_s)
-            if second is not None:
-                self.goal.add(i, second)
+        second, defined = self._goal.update(goal_rad, math.nan, self.context.period_s)
+        if defined is not None:
+            self.goal.add(second, None if defined is True else defined)
 
     def observe(self, sample: JointSample, report: Reporter) -> None:
         period = self.context.period_s
         stamp = float(sample.timestamp_s)
-        for i in range(self.context.n_joints):
-            motor = float(sample.motor_angle_rad[i]) if sample.motor_valid[i] else math.nan
-            second = self._motor[i].second_difference(motor, stamp, period)
-            if second is None:
-                self.motor.reset_sign(i)
-            else:
-                self.motor.add(i, second)
-            history = self.history[i]
-            if not sample.link_valid[i]:
-                self.link.reset_sign(i)
-                continue
-            link = float(sample.link_angle_rad[i])
-            if math.isfinite(history.before_rad):
-                count = self.link.add(i, self._second_difference(history, link, stamp))
-                if count >= self.trip_count and not self.reported[i]:
+        n = self.reported.size
+        motor = sample.motor_angle_rad
+        if np.count_nonzero(sample.motor_valid) != n:
+            motor = self._motor_reading
+            np.copyto(motor, sample.motor_angle_rad)
+            motor[np.logical_not(sample.motor_valid)] = math.nan
+        _, defined = self._motor.update(motor, stamp, period, out=self._second[:n])
+        if defined is not True:
+            self.motor.reset_sign(None if defined is None else np.logical_not(defined))
+        counted, every = self._link_second_difference(sample, stamp, period)
+        n_counted = np.count_nonzero(counted)
+        if defined is True and n_counted == n:
+            self._signals.add(self._second)
+        elif defined is not None or n_counted:
+            added = self._added
+            added[:n] = False if defined is None else defined  # (True, or a mask)
+            added[n:] = counted
+            self._signals.add(self._second, added)
+        if n_counted:
+            news = self.link.count >= self.trip_count
+            if np.count_nonzero(news):
+                news &= counted & np.logical_not(self.reported)
+                for i in np.flatnonzero(news).tolist():
                     self.reported[i] = True
                     self._report(i, report)
-            history.push(link, stamp)
+        self.history.push(sample.link_valid, sample.link_angle_rad, stamp, every)
 
-    def _second_difference(self, history: LinkHistory, link: float, stamp: float) -> float:
-        return _scaled(
-            link - history.last_rad,
-            history.last_rad - history.before_rad,
-            stamp - history.last_sampled_s,
-            history.last_sampled_s - history.sampled_before_s,
-            self.context.period_s,
-        )
+    def _link_second_difference(
+        self, sample: JointSample, stamp: float, period: float
+    ) -> tuple[np.ndarray, bool]:
+        """The link reading's second differences (into the second half of `_second`), where
+        they count (a mask: the joints read now whose last two readings are known), and
+        whether every joint was read."""
+        history = self.history
+        valid, link = sample.link_valid, sample.link_angle_rad
+        n = valid.size
+        every = bool(np.count_nonzero(valid) == n)
+        if not every:
+            self.link.reset_sign(np.logical_not(valid))
+        counted = np.isfinite(history.before_rad)
+        if not every:
+            counted &= valid
+        if not np.count_nonzero(counted):
+            return counted, every
+        last, before = history.last_rad, history.before_rad
+        out = self._second[n:]
+        if history.uniform:  # one instant for every joint: the same operations, in place
+            before_s, last_s = history.instants_s
+            dt_now, dt_before = stamp - last_s, last_s - before_s
+            if dt_now > 0 and dt_before > 0:
+                slope_before = self._scratch
+                np.divide(np.subtract(last, before, out=slope_before), dt_before, out=slope_before)
+                np.divide(np.subtract(link, last, out=out), dt_now, out=out)
+                out -= slope_before
+                out *= period
+                return counted, every
+        else:
+            dt_now = stamp - history.last_sampled_s
+            dt_before = history.last_sampled_s - history.sampled_before_s
+        out[:] = scaled_second_difference(link - last, last - before, dt_now, dt_before, period)
+        return counted, every
 
     def _report(self, i: int, report: Reporter) -> None:
         s = self.context.safety
@@ -249,29 +300,3 @@ class LinkNoiseWatch(Watch):
                 f"{device.link_sensor}: the link jumps, the motor does not ({counts}): a noisy "
                 "link encoder",
             )
-
-
-def _scaled(
-    step_now: float, step_before: float, dt_now: float, dt_before: float, period_s: float
-) -> float:
-    """(slope now - slope before) x period over the sampling instants, or the plain second
-    difference without usable timestamps (not increasing, or NaN)."""
-    if dt_now > 0 and dt_before > 0:
-        return (step_now / dt_now - step_before / dt_before) * period_s
-    return step_now - step_before
-
-
-class _Trace:
-    """The last two readings of one signal and their instants: its next second difference."""
-
-    def __init__(self) -> None:
-        self.values = [math.nan, math.nan]  # before, last
-        self.times = [math.nan, math.nan]
-
-    def second_difference(self, value: float, time_s: float, period_s: float) -> float | None:
-        """This reading's second difference (None while there are not three finite ones)."""
-        (before, last), (t_before, t_last) = self.values, self.times
-        self.values, self.times = [last, value], [t_last, time_s]
-        if not (math.isfinite(before) and math.isfinite(last) and math.isfinite(value)):
-            return None
-        return _scaled(value - last, last - before, time_s - t_last, t_last - t_before, period_s)

@@ -225,7 +225,10 @@ class Supervisor:
             if goal is None:
                 return None
             goal = np.asarray(goal, dtype=float)
-            if goal.shape != self.min_goal.shape or not np.isfinite(goal).all():
+            if (
+                goal.shape != self.min_goal.shape
+                or np.count_nonzero(np.isfinite(goal)) != goal.size
+            ):
                 self.trip(
                     SafetyCause.COMMAND_INVALID,
                     None,
@@ -246,10 +249,10 @@ class Supervisor:
         return goal.copy()
 
     def _limit(self, goal: np.ndarray) -> np.ndarray:
-        clipped = np.clip(goal, self.min_goal, self.max_goal)
+        clipped = goal.clip(self.min_goal, self.max_goal)  # (np.clip's own method)
         at_limit = clipped != goal
         self._watch_saturation(at_limit)
-        if at_limit.any():
+        if np.count_nonzero(at_limit):
             self._clipped_total += at_limit
             for i in np.flatnonzero(at_limit):
                 self.notice(
@@ -262,17 +265,21 @@ class Supervisor:
             return clipped
         low = self._last_goal - self.max_goal_step
         high = self._last_goal + self.max_goal_step
-        limited = np.clip(clipped, low, high)
+        limited = clipped.clip(low, high)
         self._rate_limited_total += limited != clipped
         # the last goal is inside the limits, so the rate-limited goal is too
         return limited
 
     def _watch_saturation(self, at_limit: np.ndarray) -> None:
-        slot = self._tick % self._clipped_recent.shape[0]
-        self._clipped_recent_count += at_limit.astype(int) - self._clipped_recent[slot]
-        self._clipped_recent[slot] = at_limit
         window = self._clipped_recent.shape[0]
-        for i in np.flatnonzero(self._clipped_recent_count >= self._saturation_trip):
+        recent = self._clipped_recent[self._tick % window]
+        self._clipped_recent_count += at_limit
+        self._clipped_recent_count -= recent
+        recent[:] = at_limit
+        saturated = self._clipped_recent_count >= self._saturation_trip
+        if not np.count_nonzero(saturated):
+            return
+        for i in np.flatnonzero(saturated):
             self.trip(
                 SafetyCause.GOAL_SATURATED,
                 int(i),

@@ -32,7 +32,7 @@ class Watches:
 
     @classmethod
     def default(cls, context: WatchContext) -> Watches:
-        history = [LinkHistory() for _ in range(context.n_joints)]
+        history = LinkHistory(context.n_joints)
         return cls(
             bus=BusErrorWatch(context),
             actuator=ActuatorFaultWatch(context),

@@ -81,35 +81,39 @@ class BusErrorWatch(Watch):
         self.bad_ticks = np.zeros(n, dtype=int)
         self.bad_total = np.zeros(n, dtype=int)
         self._reason = [""] * n
+        self._streak = False  # some joint is in a streak of invalid replies
 
     def observe(self, sample: JointSample, report: Reporter) -> None:
+        valid = sample.motor_valid
+        if not self._streak and np.count_nonzero(valid) == valid.size:
+            return
         limit = self.context.safety.bus_error_ticks
-        for i in range(self.context.n_joints):
-            actuator = self.context.devices[i].actuator
-            if sample.motor_valid[i]:
-                if self.bad_ticks[i]:
-                    streak = (
-                        f"{actuator}: {self.bad_ticks[i]} tick(s) without a valid reply "
-                        f"({self._reason[i]}), then it answered again"
-                    )
-                    if self.bad_ticks[i] < limit:
-                        message = f"{streak}: tolerated (bus_error_ticks = {limit})"
-                        report.notice(NoticeKind.BUS_GLITCH, i, message)
-                    else:
-                        message = f"{streak}; the safe state stays latched"
-                        report.notice(NoticeKind.BUS_RECOVERED, i, message)
-                self.bad_ticks[i] = 0
-                continue
-            self.bad_ticks[i] += 1
-            self.bad_total[i] += 1
+        bad_ticks = self.bad_ticks
+        for i in np.flatnonzero(valid & (bad_ticks > 0)).tolist():
+            streak = (
+                f"{self.context.devices[i].actuator}: {bad_ticks[i]} tick(s) without a valid "
+                f"reply ({self._reason[i]}), then it answered again"
+            )
+            if bad_ticks[i] < limit:
+                message = f"{streak}: tolerated (bus_error_ticks = {limit})"
+                report.notice(NoticeKind.BUS_GLITCH, i, message)
+            else:
+                message = f"{streak}; the safe state stays latched"
+                report.notice(NoticeKind.BUS_RECOVERED, i, message)
+        bad = np.logical_not(valid)
+        bad_ticks *= bad
+        bad_ticks += bad
+        self.bad_total += bad
+        self._streak = bool(np.count_nonzero(bad_ticks))
+        for i in np.flatnonzero(bad).tolist():
             mine = sample.errors_of(i, DeviceRole.ACTUATOR)
             self._reason[i] = "; ".join(f.message for f in mine) or "no valid reply"
-            if self.bad_ticks[i] >= limit:
+            if bad_ticks[i] >= limit:
                 report.trip(
                     SafetyCause.BUS_ERROR,
                     i,
-                    f"{actuator}: {self.bad_ticks[i]} ticks in a row without a valid reply "
-                    f"({self._reason[i]})",
+                    f"{self.context.devices[i].actuator}: {bad_ticks[i]} ticks in a row "
+                    f"without a valid reply ({self._reason[i]})",
                 )
 
 
@@ -122,9 +126,14 @@ class ActuatorFaultWatch(Watch):
         self.expect_torque = False  # set by the supervisor when the loop turns torque on
 
     def observe(self, sample: JointSample, report: Reporter) -> None:
-        for i in range(self.context.n_joints):
-            if not sample.motor_valid[i]:
-                continue
+        n = sample.torque_enabled.size
+        healthy = not np.count_nonzero(sample.actuator_fault)
+        if healthy and (not self.expect_torque or np.count_nonzero(sample.torque_enabled) == n):
+            return
+        valid = sample.motor_valid
+        faulted = valid & (sample.actuator_fault != 0)
+        lost = valid & np.logical_not(sample.torque_enabled) if self.expect_torque else faulted
+        for i in np.flatnonzero(faulted | lost).tolist():
             actuator = self.context.devices[i].actuator
             flags = int(sample.actuator_fault[i])
             if flags:
@@ -137,7 +146,7 @@ class ActuatorFaultWatch(Watch):
                     f"0x{code:02X}); torque is {torque}",
                     detail=code,
                 )
-            elif self.expect_torque and not sample.torque_enabled[i]:
+            else:
                 report.trip(
                     SafetyCause.TORQUE_LOST,
                     i,
@@ -153,7 +162,8 @@ class CurrentGuardWatch(Watch):
     back down (never below 0) while it is not, as the emulated actuator's own overload timer
     does (sim_backend/servo.py; ROBOTIS publish no threshold). With a fraction below the
     actuator's (0.8 < 0.9) and a time below its (0.6 s < 1.5 s), every tick that runs the
-    actuator's timer up runs this one up too, so the guard fires first.
+    actuator's timer up runs this one up too, so the guard fires first. A joint whose actuator
+    did not answer this tick keeps its timer.
     """
 
     def __init__(self, context: WatchContext) -> None:
@@ -162,43 +172,56 @@ class CurrentGuardWatch(Watch):
         self.timer_s = np.zeros(n)
         self.current_limit_a = np.full(n, np.nan)
 
+    @property
+    def current_limit_a(self) -> np.ndarray:
+        return self._limit_a
+
+    @current_limit_a.setter
+    def current_limit_a(self, limit_a: np.ndarray) -> None:
+        self._limit_a = limit_a
+        self._near_a = self.context.safety.current_guard_fraction * limit_a  # NaN: never near
+
     def observe(self, sample: JointSample, report: Reporter) -> None:
         s = self.context.safety
         if not s.current_guard:
             return
         period = self.context.period_s
-        for i in range(self.context.n_joints):
-            if not sample.motor_valid[i]:
-                continue
-            current = abs(float(sample.motor_current_a[i]))
-            limit = self.current_limit_a[i]
-            near = current >= s.current_guard_fraction * limit  # False if the limit is NaN
-            self.timer_s[i] = max(0.0, self.timer_s[i] + (period if near else -period))
-            if self.timer_s[i] >= s.current_guard_time_s - 1e-9:
-                report.trip(
-                    SafetyCause.CURRENT,
-                    i,
-                    f"motor current {current:.2f} A: near the limit (>= "
-                    f"{s.current_guard_fraction:.0%} of {limit:.2f} A) for a net "
-                    f"{self.timer_s[i]:.2f} s, before the actuator's own overload protection",
-                )
+        valid = sample.motor_valid
+        current = np.abs(sample.motor_current_a)
+        step = np.where(current >= self._near_a, period, -period)
+        if np.count_nonzero(valid) != valid.size:  # an unanswered joint keeps its timer
+            step[np.logical_not(valid)] = 0.0
+        timer = self.timer_s
+        timer += step
+        np.maximum(timer, 0.0, out=timer)
+        tripped = timer >= s.current_guard_time_s - 1e-9
+        if not np.count_nonzero(tripped):
+            return
+        for i in np.flatnonzero(tripped & valid).tolist():
+            report.trip(
+                SafetyCause.CURRENT,
+                i,
+                f"motor current {current[i]:.2f} A: near the limit (>= "
+                f"{s.current_guard_fraction:.0%} of {self.current_limit_a[i]:.2f} A) for a net "
+                f"{timer[i]:.2f} s, before the actuator's own overload protection",
+            )
 
 
 class DeflectionWatch(Watch):
     def observe(self, sample: JointSample, report: Reporter) -> None:
         bound = self.context.safety.max_deflection_rad
-        for i in range(self.context.n_joints):
-            if not (sample.motor_valid[i] and sample.link_valid[i]):
-                continue
-            deflection = float(sample.link_angle_rad[i] - sample.motor_angle_rad[i])
-            if abs(deflection) > bound:
-                torque = abs(deflection) * self.context.stiffness_nm_per_rad[i]
-                report.trip(
-                    SafetyCause.DEFLECTION,
-                    i,
-                    f"gear deflection {deflection:+.4f} rad beyond +-{bound} rad "
-                    f"({torque:.0f} N m at K)",
-                )
+        deflection = sample.link_angle_rad - sample.motor_angle_rad  # NaN where either is unread
+        beyond = np.abs(deflection) > bound
+        if not np.count_nonzero(beyond):
+            return
+        for i in np.flatnonzero(beyond & sample.motor_valid & sample.link_valid).tolist():
+            torque = abs(float(deflection[i])) * self.context.stiffness_nm_per_rad[i]
+            report.trip(
+                SafetyCause.DEFLECTION,
+                i,
+                f"gear deflection {float(deflection[i]):+.4f} rad beyond +-{bound} rad "
+                f"({torque:.0f} N m at K)",
+            )
 
 
 class OverrunWatch:

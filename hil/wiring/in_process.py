@@ -89,6 +89,10 @@ class InProcessJointBus(JointBus):
         )
         self.reads = 0
         self.closed = False
+        self._devices = tuple(
+            JointDevices(f"actuator {j.dynamixel_id}", f"link encoder node {j.encoder_node_id}")
+            for j in config.joints
+        )
 
     def _require(self) -> DirectTestbed:
         if self.testbed is None or self.closed:
@@ -123,18 +127,20 @@ class InProcessJointBus(JointBus):
         sample.link_angle_rad[:] = self._link.angle(reading.link_angle_rad)
         sample.link_valid[:] = reading.link_valid
         sample.link_age_s[:] = np.where(reading.link_valid, 0.0, np.inf)
-        devices = self.devices()
-        for i in range(self.n_joints):
-            if reading.hardware_error[i]:
-                sample.actuator_fault[i] = actuator_fault(int(reading.hardware_error[i]))
-            if not reading.motor_valid[i]:
-                sample.bus_errors.append(
-                    BusFault(i, DeviceRole.ACTUATOR, devices[i].actuator, "no valid reply")
-                )
-            if not reading.link_valid[i]:
-                sample.bus_errors.append(
-                    BusFault(i, DeviceRole.LINK_SENSOR, devices[i].link_sensor, "no answer")
-                )
+        n = self.n_joints
+        for i in np.flatnonzero(reading.hardware_error).tolist():
+            sample.actuator_fault[i] = actuator_fault(int(reading.hardware_error[i]))
+        if np.count_nonzero(reading.motor_valid) + np.count_nonzero(reading.link_valid) != 2 * n:
+            devices = self.devices()
+            for i in range(n):  # the bus's faults of the joint, its actuator's first
+                if not reading.motor_valid[i]:
+                    sample.bus_errors.append(
+                        BusFault(i, DeviceRole.ACTUATOR, devices[i].actuator, "no valid reply")
+                    )
+                if not reading.link_valid[i]:
+                    sample.bus_errors.append(
+                        BusFault(i, DeviceRole.LINK_SENSOR, devices[i].link_sensor, "no answer")
+                    )
         sample.extra["contact_force_n"] = reading.contact_force_n
         for sensor, wrench in zip(self.config.force_torque_sensors, reading.wrenches, strict=False):
             if wrench is None:
@@ -158,8 +164,13 @@ class InProcessJointBus(JointBus):
     def write(self, goal_motor_angle_rad: np.ndarray) -> None:
         testbed = self._require()
         goal = np.asarray(goal_motor_angle_rad, dtype=float)
-        bad = ~(np.isfinite(goal) & (goal >= self._min) & (goal <= self._max))
-        if goal.shape != self._min.shape or bad.any():
+        if (
+            goal.shape != self._min.shape
+            or np.count_nonzero(
+                (goal >= self._min) & (goal <= self._max)  # False for NaN
+            )
+            != goal.size
+        ):
             raise ValueError(f"goal position refused, nothing sent: {goal.tolist()}")
         testbed.write_goals(self._motor.to_spec(goal))
 
@@ -198,10 +209,7 @@ class InProcessJointBus(JointBus):
         return np.array([testbed.current_limit_a(i) for i in range(self.n_joints)])
 
     def devices(self) -> tuple[JointDevices, ...]:
-        return tuple(
-            JointDevices(f"actuator {j.dynamixel_id}", f"link encoder node {j.encoder_node_id}")
-            for j in self.config.joints
-        )
+        return self._devices
 
     def describe(self) -> dict[str, object]:
         return {"joints": list(self.joint_names), "in_process": True, "seed": self.spec.seed}

@@ -50,7 +50,7 @@ def test_lockstep_designs_are_in_force_on_their_due_tick() -> None:
     choice = ControllerChoice("gc+lqr", 0.2)
     controller = build_controller(config, choice, PERIOD_S, robot, READY, contacts[0])
     recorder = _Recorder(controller)
-    scheduler = GainScheduler(robot, recorder, PERIOD_S, 0.1, threaded=False)  # type: ignore[arg-type]
+    scheduler = GainScheduler(robot, recorder, PERIOD_S, 0.1, wall_clock=False)  # type: ignore[arg-type]
     lead = scheduler.lead_ticks
     try:
         for tick in range(len(contacts) - lead):
@@ -117,7 +117,7 @@ def test_on_the_wall_clock_a_finished_design_is_installed_at_the_next_tick() -> 
     choice = ControllerChoice("gc+lqr", 0.2)
     controller = build_controller(config, choice, PERIOD_S, robot, READY, LqrContact.BOTH_FEET)
     recorder = _Recorder(controller)
-    scheduler = GainScheduler(robot, recorder, PERIOD_S, 0.1, threaded=True)  # type: ignore[arg-type]
+    scheduler = GainScheduler(robot, recorder, PERIOD_S, 0.1, wall_clock=True)  # type: ignore[arg-type]
     try:
         started = time.perf_counter()
         tick = 0
@@ -130,3 +130,73 @@ def test_on_the_wall_clock_a_finished_design_is_installed_at_the_next_tick() -> 
         scheduler.close()
     assert recorder.installed and recorder.installed[0][0] >= 1
     assert scheduler.schedule.record()["tick_wait_max_s"] is None  # never waited
+
+
+def _scheduler(designs_on=None, wall_clock: bool = False) -> tuple[GainScheduler, _Recorder]:
+    """A scheduler on the humanoid; `designs_on`: the robot model the designs use."""
+    config = load_config(robot="dyros-jet")
+    robot = robot_model(config)
+    choice = ControllerChoice("gc+lqr", 0.2)
+    controller = build_controller(config, choice, PERIOD_S, robot, READY, LqrContact.BOTH_FEET)
+    recorder = _Recorder(controller)
+    scheduler = GainScheduler(
+        designs_on or robot,
+        recorder,  # type: ignore[arg-type]
+        PERIOD_S,
+        0.1,
+        wall_clock=wall_clock,
+    )
+    return scheduler, recorder
+
+
+def test_the_designs_run_in_a_process_of_their_own_that_ends_with_the_scheduler() -> None:
+    """A design is thousands of small calls holding the interpreter's lock: in a thread it
+    delayed the loop's wake-ups by milliseconds. The worker is a child process."""
+    import os
+
+    scheduler, recorder = _scheduler()
+    worker = scheduler._worker
+    process = worker._process  # type: ignore[attr-defined]
+    assert process.pid != os.getpid() and process.is_alive()
+    for tick in range(scheduler.lead_ticks + 1):
+        scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
+    assert len(recorder.installed) == 1
+    scheduler.close()
+    assert not process.is_alive() and process.exitcode == 0
+
+
+class _FailingSm:
+    """A robot model whose Sm cannot be computed (as a singular posture would)."""
+
+    def __init__(self, robot) -> None:
+        self._robot = robot
+
+    def __getattr__(self, name: str):
+        return getattr(self._robot, name)
+
+    def sm(self, link_angle_rad, contact):
+        raise np.linalg.LinAlgError("singular posture")
+
+
+def test_a_failed_design_is_raised_on_the_loops_thread_as_it_was() -> None:
+    config = load_config(robot="dyros-jet")
+    scheduler, _ = _scheduler(_FailingSm(robot_model(config)))
+    try:
+        with pytest.raises(np.linalg.LinAlgError, match="singular posture"):
+            for tick in range(scheduler.lead_ticks + 1):
+                scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
+    finally:
+        scheduler.close()
+
+
+def test_a_designer_process_that_died_is_an_error_not_a_hang() -> None:
+    scheduler, _ = _scheduler()
+    process = scheduler._worker._process  # type: ignore[attr-defined]
+    try:
+        process.kill()
+        process.join()
+        with pytest.raises(RuntimeError, match="process ended"):
+            for tick in range(scheduler.lead_ticks + 1):
+                scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
+    finally:
+        scheduler.close()

@@ -71,6 +71,33 @@ def test_an_overrun_is_counted_and_whole_missed_periods_skipped(fake_time: FakeT
     assert fake_time.now == pytest.approx(3 * PERIOD_S, abs=1e-5)  # back on the grid
 
 
+def test_the_start_up_tick_is_not_judged_against_a_deadline(fake_time: FakeTime) -> None:
+    """Tick 0 turns torque on (~0.12 s on the humanoid): the grid starts at its end, so the
+    first control tick is due a period later and nothing counts as missed."""
+    clock = WallClock(PERIOD_S)
+    clock.next_tick()
+    fake_time.now += 0.120  # the start gate and torque on
+    clock.start_grid()
+    anchored = fake_time.now
+    tick = clock.next_tick()
+    assert (tick.index, tick.skipped) == (1, 0)
+    assert tick.slack_s == pytest.approx(PERIOD_S, abs=1e-5)
+    assert clock.stats.overruns == 0
+    assert fake_time.now == pytest.approx(anchored + PERIOD_S, abs=1e-5)
+    assert clock.grid_origin_s == pytest.approx(anchored, abs=1e-5)
+    fake_time.now += 0.001
+    assert clock.next_tick().index == 2
+    assert fake_time.now == pytest.approx(anchored + 2 * PERIOD_S, abs=1e-5)
+
+
+def test_without_the_re_anchoring_the_start_up_tick_is_an_overrun(fake_time: FakeTime) -> None:
+    clock = WallClock(PERIOD_S)
+    clock.next_tick()
+    fake_time.now += 0.120
+    tick = clock.next_tick()
+    assert tick.skipped == 23 and clock.stats.overruns == 1
+
+
 def test_a_negative_spin_stretch_is_refused() -> None:
     with pytest.raises(ValueError, match="spin_s"):
         WallClock(PERIOD_S, spin_s=-0.001)
