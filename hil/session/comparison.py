@@ -25,9 +25,7 @@ in this process with `--workers 1`; the report is the same either way.
 
 from __future__ import annotations
 
-import os
 import time
-import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,11 +52,10 @@ from hil.output.report import Report, ReportContent, write_report
 from hil.output.rundir import create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
 from hil.session.plan import (
-    STOPS_THE_PLAN,
     PlannedRun,
-    failed_run,
     incomplete_reason,
     planned_runs,
+    run_planned,
     usable_cpus,
 )
 from hil.session.session import Session, Setup
@@ -266,22 +263,7 @@ def _run_serially(
             bar.update_to(run.number - 1, what)
         else:
             session.say(what)
-        try:
-            result = session.run_one(
-                run.experiment,
-                run.choice,
-                faults=faults,
-                overruns=overruns,
-                out_dir=run.out_dir,
-                print_result=False,
-                stop=stop,
-            )
-        except STOPS_THE_PLAN:
-            raise
-        except Exception as exc:  # noqa: BLE001 - reported as the run's ending, the plan goes on
-            if os.environ.get("HIL_DEBUG"):
-                traceback.print_exc()
-            result = failed_run(run, exc)
+        result = run_planned(session, run, faults, overruns, stop)
         entries.append(RunEntry(run.experiment.name, run.choice, result))
         bar.update_to(run.number)
         if result.termination is Termination.INTERRUPTED:

@@ -12,16 +12,19 @@ Shared by the serial plan (hil.session.comparison) and the plan run in worker pr
 from __future__ import annotations
 
 import os
+import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from hil.config import ConfigError
 from hil.experiments import Experiment
+from hil.loop import StopFlag
 from hil.output.records import RunEntry, RunResult
 from hil.safety import ReferenceOutsideLimits
-from hil.session.session import SessionError
+from hil.session.session import Session, SessionError
 from hil.vocabulary import ControllerChoice, RunEnding, Termination
+from sim_backend.scenario import FaultEvent
 
 STOPS_THE_PLAN: tuple[type[Exception], ...] = (ConfigError, ReferenceOutsideLimits, SessionError)
 
@@ -48,6 +51,32 @@ def planned_runs(
         PlannedRun(number, experiment, choice, root / f"{experiment.name}-{choice.dir_name}")
         for number, (experiment, choice) in enumerate(plan, start=1)
     ]
+
+
+def run_planned(
+    session: Session,
+    run: PlannedRun,
+    faults: tuple[FaultEvent, ...],
+    overruns: tuple[tuple[float, float], ...],
+    stop: StopFlag,
+) -> RunResult:
+    """One run of a plan, in this process; raises only what `STOPS_THE_PLAN`."""
+    try:
+        return session.run_one(
+            run.experiment,
+            run.choice,
+            faults=faults,
+            overruns=overruns,
+            out_dir=run.out_dir,
+            print_result=False,
+            stop=stop,
+        )
+    except STOPS_THE_PLAN:
+        raise
+    except Exception as exc:  # noqa: BLE001 - reported as the run's ending, the plan goes on
+        if os.environ.get("HIL_DEBUG"):
+            traceback.print_exc()
+        return failed_run(run, exc)
 
 
 def failed_run(run: PlannedRun, exc: BaseException | str) -> RunResult:

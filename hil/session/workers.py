@@ -13,14 +13,16 @@ emulator does not, its worker stops it); a SIGINT or SIGTERM sent to the parent 
 on to the workers that have a run. Either way the worker's `StopFlag` ends its run through the
 loop's own exit path (torque off, the log complete, summary.json), the worker starts no other
 run, and the parent gives out no more, takes the running runs' results and ends the workers.
-The workers start with both signals ignored (until their own handlers are in place a signal
+A worker given a run it has not begun skips it: the parent sets the plan's stop (an Event)
+before it signals. The workers start with both signals ignored (until their own handlers are in place a signal
 would kill them half-started); the parent ignores them for the few milliseconds of starting
 the processes. No worker outlives the plan: each is told to leave and joined; one that does not
 leave is terminated, then killed.
 
 Messages, worker -> parent (one pipe per worker): ("started",), ("say", text),
-("progress", fraction of the run), ("done", RunResult), ("failed", text),
-("stops", exception: one of STOPS_THE_PLAN), ("skipped",) (stopped before it began).
+("progress", fraction of the run), ("done", RunResult: a run that raised is a failed run,
+hil.session.plan), ("stops", exception: one of STOPS_THE_PLAN), ("skipped",) (stopped before
+it began).
 """
 
 from __future__ import annotations
@@ -32,7 +34,6 @@ import os
 import pickle
 import signal
 import time
-import traceback
 from collections import deque
 from collections.abc import Sequence
 from multiprocessing.connection import Connection, wait
@@ -41,7 +42,7 @@ from typing import Any
 from hil.loop import StopFlag
 from hil.output.progress import Progress
 from hil.output.records import RunEntry, RunResult
-from hil.session.plan import STOPS_THE_PLAN, PlannedRun, failed_run
+from hil.session.plan import STOPS_THE_PLAN, PlannedRun, failed_run, run_planned
 from hil.session.session import Session, SessionError
 from sim_backend.scenario import FaultEvent
 
@@ -101,26 +102,13 @@ def _run(
     stop: StopFlag,
 ) -> tuple[Any, ...]:
     try:
-        result = session.run_one(
-            run.experiment,
-            run.choice,
-            faults=faults,
-            overruns=overruns,
-            out_dir=run.out_dir,
-            print_result=False,
-            stop=stop,
-        )
+        return ("done", run_planned(session, run, faults, overruns, stop))
     except STOPS_THE_PLAN as exc:
         try:
             pickle.dumps(exc)
         except Exception:  # noqa: BLE001 - an exception that cannot travel: its words do
-            exc = SessionError(str(exc))
+            return ("stops", SessionError(str(exc)))
         return ("stops", exc)
-    except Exception as exc:  # noqa: BLE001 - reported as the run's ending, the plan goes on
-        if os.environ.get("HIL_DEBUG"):
-            session.say(traceback.format_exc())
-        return ("failed", f"{type(exc).__name__}: {exc}")
-    return ("done", result)
 
 
 @dataclasses.dataclass
@@ -237,12 +225,12 @@ class _Pool:
                 elif kind == "progress":
                     worker.fraction = min(max(rest[0], 0.0), 1.0)
                     view.moved(self.workers)
-                else:  # the run is over: done, failed, stops or skipped
+                else:  # the run is over: done, stops or skipped
                     worker.run = None
                     if kind == "stops":
                         self.stops.append(rest[0])
-                    elif kind in ("done", "failed"):
-                        self._ended(run, rest[0] if kind == "done" else failed_run(run, rest[0]))
+                    elif kind == "done":
+                        self._ended(run, rest[0])
                     return
         except (EOFError, OSError):
             pass
