@@ -14,10 +14,10 @@ on to the workers that have a run. Either way the worker's `StopFlag` ends its r
 loop's own exit path (torque off, the log complete, summary.json), the worker starts no other
 run, and the parent gives out no more, takes the running runs' results and ends the workers.
 A worker given a run it has not begun skips it: the parent sets the plan's stop (an Event)
-before it signals. The workers start with both signals ignored (until their own handlers are in place a signal
-would kill them half-started); the parent ignores them for the few milliseconds of starting
-the processes. No worker outlives the plan: each is told to leave and joined; one that does not
-leave is terminated, then killed.
+before it signals. The workers start with both signals ignored (until their own handlers are
+in place a signal would kill them half-started); the parent ignores them for the few
+milliseconds of starting the processes. No worker outlives the plan: each is told to leave and
+joined; one that does not leave is terminated, then killed.
 
 Messages, worker -> parent (one pipe per worker): ("started",), ("say", text),
 ("progress", fraction of the run), ("done", RunResult: a run that raised is a failed run,
@@ -75,23 +75,21 @@ def _worker_main(
     faults: tuple[FaultEvent, ...],
     overruns: tuple[tuple[float, float], ...],
 ) -> None:
-    """A worker: runs until told to leave (None) or its parent is gone."""
+    """A worker: runs until told to leave (None) or its parent is gone (then a running run
+    meets the broken pipe at its next line or progress: an error, through its exit path)."""
     stop = StopFlag()
     stop.install()  # SIGINT, SIGTERM: end the run through its exit path, start no other
     session.progress = _Relay(conn)
     session.progress_done = 0.0
-    while True:
-        try:
-            run: PlannedRun | None = conn.recv()
-        except (EOFError, OSError):  # the parent is gone
-            return
-        if run is None:
-            return
-        if stop.reason is not None or plan_stopped.is_set():
-            conn.send(("skipped",))
-            continue
-        conn.send(("started",))
-        conn.send(_run(session, run, faults, overruns, stop))
+    try:
+        while (run := conn.recv()) is not None:
+            if stop.reason is not None or plan_stopped.is_set():
+                conn.send(("skipped",))
+                continue
+            conn.send(("started",))
+            conn.send(_run(session, run, faults, overruns, stop))
+    except (EOFError, OSError):  # the parent is gone
+        return
 
 
 def _run(
