@@ -1,7 +1,8 @@
 """The `hil` command.
 
     hil run [EXPERIMENT] [--controller NAME] [--kdist K] [--config FILE] [--emulate]
-            [--realtime] [--out DIR] [--json] [--inject FAULT@T[+D]] [--seed N] ...
+            [--realtime] [--out DIR] [--json] [--inject FAULT@T[+D]] [--seed N]
+            [--workers N] ...
     hil emulate [--config FILE] [--realtime] [--experiment NAME] [--inject FAULT@T[+D]]
     hil scan --port PATH [--baudrate N]
     hil reboot [--config FILE] [--port ...]

@@ -100,6 +100,18 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="reboot actuators that report a hardware error, then home slowly, then run",
     )
+    _add_run_output(run)
+    run.add_argument(
+        "--current-guard",
+        choices=["on", "off"],
+        help="the software overload guard (default: the config's; the comparison runs without "
+        "it, as the paper did, so the actuator's own protection is what acts)",
+    )
+    _add_connection_overrides(run)
+
+
+def _add_run_output(run: argparse.ArgumentParser) -> None:
+    """What `hil run` writes and shows, and how many runs of a comparison go at a time."""
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument(
         "--no-mcap", action="store_true", help="do not write run.mcap beside the CSV log"
@@ -116,12 +128,12 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     )
     run.add_argument("--live-port", type=int, default=8765, help="its port (8765; 0: any free)")
     run.add_argument(
-        "--current-guard",
-        choices=["on", "off"],
-        help="the software overload guard (default: the config's; the comparison runs without "
-        "it, as the paper did, so the actuator's own protection is what acts)",
+        "--workers",
+        type=int,
+        metavar="N",
+        help="the comparison's runs N at a time, each in its own process with its own emulator "
+        "(default: one per CPU; 1: one after the other, in this process)",
     )
-    _add_connection_overrides(run)
 
 
 def _add_identify(sub: argparse._SubParsersAction) -> None:

@@ -28,6 +28,7 @@ _SINGLE_RUN_OPTIONS = (
     ("--duration", "duration"),
     ("--reboot-first", "reboot_first"),
 )
+_COMPARISON_OPTIONS = (("--workers", "workers"),)
 
 
 def _configured(args: argparse.Namespace) -> Config:
@@ -62,6 +63,13 @@ def _check_combinations(args: argparse.Namespace, embedded: bool, faults: tuple)
             f"{', '.join('--' + k.replace('_', '-') for k in overrides)} points a hardware "
             "configuration at other ports: give --config FILE (or --attach for an emulator)"
         )
+    if args.experiment is not None:
+        ignored = [o for o, key in _COMPARISON_OPTIONS if getattr(args, key) is not None]
+        if ignored:
+            raise ConfigError(
+                f"{', '.join(ignored)} applies to the comparison (`hil run` with no experiment, "
+                "or `hil run walking`), which runs several experiments; one runs alone"
+            )
     if args.experiment is None:
         ignored = [option for option, key in _SINGLE_RUN_OPTIONS if getattr(args, key)]
         if ignored:
@@ -258,6 +266,7 @@ def _run(
                 current_guard=args.current_guard == "on",
                 stop=stop,
                 named=named,
+                workers=args.workers,
             )
             if outcome.torque_not_off:
                 return ExitCode.TORQUE_NOT_OFF

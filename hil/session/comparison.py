@@ -15,8 +15,12 @@ On DYROS-JET (`--robot dyros-jet`): stand and push, each with pid, gc, gc+lqr an
 same four controllers (Kdist by phase: the configuration's on the stance leg, 1.0 on the landing
 leg), Sec. IV-C, Figs. 7 and 8.
 A run ending in a safety stop is a result of the comparison; one that did not run its course
-(interrupted, refused at its start, a lost bus) makes the comparison incomplete, and Ctrl-C
-stops the whole plan.
+(interrupted, refused at its start, a lost bus, an error) makes the comparison incomplete, and
+Ctrl-C stops the whole plan.
+
+The runs go one per CPU at a time (`run_plan`, `--workers N`; hil.session.workers), each
+exactly as alone (its own emulator, seed and directory: the same log), or one after the other
+in this process with `--workers 1`; the report is the same either way.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from hil.config import robot_of
+from hil.config import ConfigError, robot_of
 from hil.experiments import (
     CONTACT,
     CONTACT_LONG,
@@ -47,7 +51,15 @@ from hil.output.records import RunEntry
 from hil.output.report import Report, ReportContent, write_report
 from hil.output.rundir import create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
-from hil.session.session import Session
+from hil.session.plan import (
+    PlannedRun,
+    incomplete_reason,
+    planned_runs,
+    run_planned,
+    usable_cpus,
+)
+from hil.session.session import Session, Setup
+from hil.session.workers import run_in_workers
 from hil.vocabulary import ControllerChoice, ControllerKind, Termination
 from sim_backend.scenario import FaultEvent
 
@@ -122,40 +134,36 @@ def run_comparison(
     long_runs: bool = True,
     stop: StopFlag | None = None,
     named: str | None = None,
+    workers: int | None = None,
 ) -> ComparisonOutcome:
     """Run the plan, write the report, print its table; see the module docstring.
 
     The software current guard is off unless asked for: the paper's experiment shows the
-    actuator's own overload protection acting, and the guard would pre-empt it.
+    actuator's own overload protection acting, and the guard would pre-empt it. `workers`: how
+    many runs at a time (`comparison_workers`).
     """
     base = session.config.changed("safety", current_guard=current_guard)
     humanoid = robot_of(base) == "dyros-jet"
     name = "humanoid-comparison" if humanoid else "comparison"
     if named is not None:
         name = f"{named}-comparison"
-    root = create_run_dir(session.out_root, f"{timestamp()}-{name}")
     if named == "walking":
         plan = walking_plan(base.controller.kdist)
     elif humanoid:
         plan = humanoid_plan(base.controller.kdist)
     else:
         plan = comparison_plan(base.controller.composition, long_runs=long_runs)
-    started = time.perf_counter()
     session.config = base
-    bar = Progress(
-        len(plan), unit="runs", desc="comparison", enabled=False if session.quiet else None
+    workers = comparison_workers(session, workers, len(plan))  # refused before a directory
+    root = create_run_dir(session.out_root, f"{timestamp()}-{name}")
+    outcome = run_plan(
+        session, plan, root, faults=faults, overruns=overruns, stop=stop, workers=workers
     )
-    session.progress = bar
-    try:
-        entries, incomplete = _run_plan(session, plan, root, faults, overruns, stop, bar)
-    finally:
-        bar.close()
-        session.progress = None
     report = write_comparison_report(
         root,
-        entries,
+        outcome.entries,
         session.description,
-        time.perf_counter() - started,
+        outcome.wall_time_s,
         humanoid=humanoid,
         walking=named == "walking",
     )
@@ -163,53 +171,104 @@ def run_comparison(
     print(f"report: {report.markdown_path}")
     if session.json_output:
         print(dumps(report.summary))
-    if incomplete is not None:
-        print(f"comparison incomplete: {incomplete}")
+    if outcome.incomplete is not None:
+        print(f"comparison incomplete: {outcome.incomplete}")
     torque_not_off = tuple(
-        f"{e.experiment} / {e.choice.label}" for e in entries if e.result.torque_off_failed
+        f"{e.experiment} / {e.choice.label}" for e in outcome.entries if e.result.torque_off_failed
     )
-    return ComparisonOutcome(root, report, incomplete, torque_not_off)
+    return ComparisonOutcome(root, report, outcome.incomplete, torque_not_off)
 
 
-def _run_plan(
+@dataclass(frozen=True)
+class PlanOutcome:
+    entries: list[RunEntry]  # the runs that began, in plan order
+    incomplete: str | None  # see `incomplete_reason`
+    wall_time_s: float
+
+
+def comparison_workers(session: Session, requested: int | None, runs: int) -> int:
+    """How many runs at a time: `requested`, else one per CPU this process may use (at most
+    one per run). One where runs cannot share the machine's setup: an attached emulator
+    serves one run at a time, the live view is this process's, and wall-clock runs on the
+    same cores would take each other's time (ask for more with --workers to have it anyway)."""
+    if requested is not None:
+        if requested < 1:
+            raise ConfigError(f"--workers: must be >= 1, got {requested}")
+        if requested > 1 and (session.setup is Setup.ATTACHED or session.sinks):
+            raise ConfigError(
+                "--workers: an attached emulator (--attach) and the live view (--live) serve "
+                "one run at a time: give --workers 1"
+            )
+        return min(requested, max(runs, 1))
+    if session.setup is Setup.ATTACHED or session.sinks or session.realtime:
+        return 1
+    return max(1, min(usable_cpus(), runs))
+
+
+def run_plan(
     session: Session,
-    plan: list[tuple[Experiment, ControllerChoice]],
+    plan: Sequence[tuple[Experiment, ControllerChoice]],
     root: Path,
+    *,
+    faults: tuple[FaultEvent, ...] = (),
+    overruns: tuple[tuple[float, float], ...] = (),
+    stop: StopFlag | None = None,
+    workers: int | None = None,
+) -> PlanOutcome:
+    """The plan's runs into `root`, `workers` at a time (`comparison_workers`); Ctrl-C or
+    SIGTERM stops the whole plan. A bar with an ETA on a terminal, lines otherwise."""
+    runs = planned_runs(plan, root)
+    count = comparison_workers(session, workers, len(runs))
+    own_stop = stop is None
+    if stop is None:
+        stop = StopFlag()
+        stop.install()
+    started = time.perf_counter()
+    bar = Progress(
+        len(runs), unit="runs", desc="comparison", enabled=False if session.quiet else None
+    )
+    session.progress = bar
+    try:
+        if count > 1:
+            entries = run_in_workers(
+                session, runs, count, faults=faults, overruns=overruns, stop=stop, bar=bar
+            )
+        else:
+            entries = _run_serially(session, runs, faults, overruns, stop, bar)
+    finally:
+        bar.close()
+        session.progress = None
+        if own_stop:
+            stop.restore()
+    incomplete = incomplete_reason(entries, len(runs), stop.reason)
+    return PlanOutcome(entries, incomplete, time.perf_counter() - started)
+
+
+def _run_serially(
+    session: Session,
+    runs: Sequence[PlannedRun],
     faults: tuple[FaultEvent, ...],
     overruns: tuple[tuple[float, float], ...],
-    stop: StopFlag | None,
+    stop: StopFlag,
     bar: Progress,
-) -> tuple[list[RunEntry], str | None]:
-    """The runs of the plan in order; a bar with an ETA on a terminal, "[n/N] ..." lines
-    otherwise."""
+) -> list[RunEntry]:
+    """The runs in order, in this process, until one is interrupted."""
     entries: list[RunEntry] = []
-    incomplete: str | None = None
-    for number, (experiment, choice) in enumerate(plan, start=1):
-        if stop is not None and stop.reason is not None:
-            incomplete = f"interrupted: {stop.reason}"
+    for run in runs:
+        if stop.reason is not None:
             break
-        what = f"[{number}/{len(plan)}] {experiment.name}: {choice.label}"
-        session.progress_done = number - 1
+        what = f"[{run.number}/{len(runs)}] {run.what}"
+        session.progress_done = run.number - 1
         if bar.enabled:
-            bar.update_to(number - 1, what)
+            bar.update_to(run.number - 1, what)
         else:
             session.say(what)
-        result = session.run_one(
-            experiment,
-            choice,
-            faults=faults,
-            overruns=overruns,
-            out_dir=root / f"{experiment.name}-{choice.dir_name}",
-            print_result=False,
-            stop=stop,
-        )
-        entries.append(RunEntry(experiment.name, choice, result))
-        bar.update_to(number)
-        if not result.termination.ran_its_course:
-            incomplete = incomplete or f"{experiment.name} / {choice.label}: {result.ending}"
-            if result.termination is Termination.INTERRUPTED:
-                break
-    return entries, incomplete
+        result = run_planned(session, run, faults, overruns, stop)
+        entries.append(RunEntry(run.experiment.name, run.choice, result))
+        bar.update_to(run.number)
+        if result.termination is Termination.INTERRUPTED:
+            break
+    return entries
 
 
 def write_comparison_report(
