@@ -108,8 +108,7 @@ class LabWalkingScheme(ReferenceFeedback):
             feedback = self.com_feedback
             terms.append(
                 f"CoM feedback on the pelvis ({feedback.measured_from}), kp "
-                f"{feedback.gain_per_tick:g}"
-                + (" per tick" if feedback.integrates else "")
+                f"{feedback.gain_per_tick:g}" + (" per tick" if feedback.integrates else "")
             )
         if self.deflection is not None:
             terms.append("deflection model (Humanoids 2016)")

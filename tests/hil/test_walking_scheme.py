@@ -66,9 +66,7 @@ def test_the_correction_is_kp_times_the_measured_com_error(config) -> None:
     c_measured), c_measured the measured legs' CoM hung from the plan's pelvis (the lab's
     master); the new reference puts both ankles where the plan does, with the pelvis moved by
     the correction."""
-    master = config.changed(
-        "walking", com_feedback_gain=0.15, com_measured_from="commanded-pelvis"
-    )
+    master = config.changed("walking", com_feedback_gain=0.15, com_measured_from="commanded-pelvis")
     scheme = LabWalkingScheme.for_run(PATTERN, master, ControllerChoice(ControllerKind.GC))
     model = leg_model()
     tick = 900
