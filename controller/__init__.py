@@ -59,6 +59,7 @@ from controller.model import (
     flexible_joint_state_space,
     single_link_sm,
 )
+from controller.planned_motion import PlannedMotion
 from controller.servo_cascade import ServoCascadeParams
 
 __all__ = [
@@ -91,6 +92,7 @@ __all__ = [
     "LqrWeights",
     "NoGravity",
     "PendulumGravity",
+    "PlannedMotion",
     "ServoCascadeParams",
     "ServoModel",
     "TrackingGain",

@@ -49,6 +49,7 @@ from controller.lqr_designs import (
     KdistReference,
 )
 from controller.model import FlexibleJointParams, per_joint_array, validate_sm
+from controller.planned_motion import PlannedMotion
 from controller.servo_cascade import ServoCascadeParams
 
 LAB_KDIST_RAMP_S = 0.1  # the lab's compliant_tick: 0.1 s x 200 Hz = 20 ticks, cubic
@@ -118,7 +119,16 @@ class ControllerParams:
     reference_feedforward: False (the paper's (21), which takes d theta_d/dt ~ 0: the goal
         follows a moving reference only through the error's integral) or True (the reference's
         increment is added to duc, so uc moves with theta_d and the LQR corrects about it: a
-        gentle integral can then follow a walk; docs/humanoid.md).
+        gentle integral can then follow a walk; docs/humanoid.md). Given a planned motion
+        (`set_planned_motion`, a walk's pattern), the fed-back increments are taken about the
+        plan's: dx - dx_plan, dx_plan = [d theta_p; d theta_p; d dtheta_p] (and d omega_m -
+        d dtheta_p), so that the state-increment gains act on departures from the planned
+        motion, not on the motion itself (without it they brake the joint to a fraction of
+        the reference's speed; docs/walking.md).
+    servo_feedforward: with a planned motion, add the servo's velocity lag on the plan to the
+        goal of "gc" and the LQR controllers: u += dtheta_plan/dt / Kp, the inverse of the
+        paper's servo model (4) (theta_m follows u with the lag 1/Kp), which under a moving
+        reference leaves the motor behind by its velocity over Kp (ours; docs/walking.md).
     """
 
     joints: FlexibleJointParams
@@ -137,6 +147,7 @@ class ControllerParams:
     servo_cascade: ServoCascadeParams | None = None
     kdist_reference: KdistReference = "per-tick"
     reference_feedforward: bool = False
+    servo_feedforward: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.joints, FlexibleJointParams):
@@ -367,6 +378,10 @@ class JointController(abc.ABC):
             f"{self.name!r} has no disturbance observer; set_kdist needs 'gc+lqr+dob'"
         )
 
+    def set_planned_motion(self, motion: PlannedMotion | None) -> None:  # noqa: B027
+        """The plan's motion at the coming tick (controller/planned_motion.py), or None; only
+        the LQR controllers use it (reference_feedforward). Call before `step`."""
+
     @property
     @abc.abstractmethod
     def terms(self) -> ControlTerms:
@@ -387,13 +402,31 @@ class JointController(abc.ABC):
 class _FeedForwardController(JointController):
     """The "pid" (no gravity compensator) and "gc" controllers: u = theta_d (+ ug(theta_d))."""
 
-    def __init__(self, name: str, n_joints: int, compensator: GravityCompensator | None) -> None:
+    def __init__(
+        self,
+        name: str,
+        n_joints: int,
+        compensator: GravityCompensator | None,
+        servo_lead_per_rad: np.ndarray | None = None,
+    ) -> None:
         super().__init__(n_joints)
         self.name = name
         self._compensator = compensator
         self._reference = np.zeros(n_joints)
         self._ug = np.zeros(n_joints)
         self._u = np.zeros(n_joints)
+        # servo_feedforward: the goal's lead per rad of planned increment, 1 / (Kp dt)
+        self._servo_lead_per_rad = servo_lead_per_rad
+        self._servo_lead = np.zeros(n_joints)
+
+    def set_planned_motion(self, motion: PlannedMotion | None) -> None:
+        if self._servo_lead_per_rad is None:
+            return
+        if motion is None:
+            self._servo_lead[:] = 0.0
+            return
+        increment = self._joint_array(motion.reference_increment_rad, "reference_increment_rad")
+        np.multiply(increment, self._servo_lead_per_rad, out=self._servo_lead)
 
     def _reset(
         self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray, goal: np.ndarray
@@ -410,6 +443,8 @@ class _FeedForwardController(JointController):
         if self._compensator is not None:
             self._ug[:] = self._compensator.input_rad(reference)
         np.add(self._reference, self._ug, out=self._u)
+        if self._servo_lead_per_rad is not None:
+            self._u += self._servo_lead
         return self._u
 
     def _notify_applied(self, applied: np.ndarray) -> None:
@@ -469,6 +504,12 @@ class _LqrController(JointController):
         self._scratch = np.zeros(n)
         self._dob_scaled = np.zeros(n)
         self._no_dob = np.zeros(n)
+        self._planned_state_increment = np.zeros(3 * n)
+        self._planned_velocity_increment = np.zeros(n)
+        self._planned = False
+        self._fed_back = np.zeros(3 * n)
+        self._servo_increment = np.zeros(n)  # servo_feedforward's increment of the lead
+        self._servo_gain = params.joints.servo_gain_per_s
 
     @property
     def lqr_gain(self) -> TrackingGain:
@@ -496,6 +537,29 @@ class _LqrController(JointController):
             raise ControllerUsageError(f"{self.name!r} has no disturbance observer")
         return self._dob.kdist
 
+    def set_planned_motion(self, motion: PlannedMotion | None) -> None:
+        self._servo_increment[:] = 0.0
+        if motion is not None and self.params.servo_feedforward:
+            np.divide(
+                motion.reference_velocity_increment_rad_s,
+                self._servo_gain,
+                out=self._servo_increment,
+            )
+        if motion is None or not self.params.reference_feedforward:
+            self._planned = False
+            return
+        n = self.n_joints
+        increment = self._joint_array(motion.reference_increment_rad, "reference_increment_rad")
+        velocity = self._joint_array(
+            motion.reference_velocity_increment_rad_s, "reference_velocity_increment_rad_s"
+        )
+        planned = self._planned_state_increment
+        planned[:n] = increment
+        planned[n : 2 * n] = increment
+        planned[2 * n :] = velocity
+        self._planned_velocity_increment[:] = velocity
+        self._planned = True
+
     def _reset(
         self, motor: np.ndarray, link: np.ndarray, reference: np.ndarray, goal: np.ndarray
     ) -> None:
@@ -515,16 +579,22 @@ class _LqrController(JointController):
         np.subtract(link, reference, out=self._error)
         # duc(k) = -(Ke e(k) + Kx dx(k))   (24), discrete
         np.matmul(self._gain.error_gain, self._error, out=self._increment)
-        np.matmul(self._gain.state_increment_gain, self._estimator.increment, out=self._scratch)
+        fed_back = self._estimator.increment
+        motor_velocity = self._estimator.motor_velocity_increment
+        if self._planned:  # about the plan's motion (reference_feedforward)
+            fed_back = np.subtract(fed_back, self._planned_state_increment, out=self._fed_back)
+            motor_velocity = motor_velocity - self._planned_velocity_increment
+        np.matmul(self._gain.state_increment_gain, fed_back, out=self._scratch)
         self._increment += self._scratch
         velocity_gain = self._gain.motor_velocity_increment_gain
         if velocity_gain is not None:
-            np.matmul(velocity_gain, self._estimator.motor_velocity_increment, out=self._scratch)
+            np.matmul(velocity_gain, motor_velocity, out=self._scratch)
             self._increment += self._scratch
         np.negative(self._increment, out=self._increment)
         if self.params.reference_feedforward:  # uc moves with theta_d (d theta_d added)
             self._increment += reference
             self._increment -= self._reference
+        self._increment += self._servo_increment  # servo_feedforward (zero without a plan)
         self._reference[:] = reference
         if self._dob is not None:
             # compares against the goal sent last tick (composition.u after notify_applied)
@@ -592,6 +662,7 @@ def make_controller(
     if kind is ControllerKind.PID:
         return _FeedForwardController(kind.value, n, None)
     if kind is ControllerKind.GC:
-        return _FeedForwardController(kind.value, n, compensator)
+        lead = 1.0 / (params.joints.servo_gain_per_s * dt_s) if params.servo_feedforward else None
+        return _FeedForwardController(kind.value, n, compensator, lead)
     gain = params.design_gain(sm, dt_s)
     return _LqrController(kind.value, params, gain, dt_s, compensator, use_dob=kind.has_dob)

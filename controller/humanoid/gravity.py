@@ -8,6 +8,16 @@
 (8)  ug = C tau_g, C the paper's K^-1 or the whole joint's compliance
      (`controller.gravity.GravityCompensator`, `GcCompliance`).
 
+For a planned motion (ours, beyond the paper's static (5): `set_planned_load`, fed from a
+walk's pattern, controller/planned_motion.py): f = m (g - a) with a the planned CoM
+acceleration (d'Alembert, the whole mass accelerating with the CoM: the line of f through the
+CoM meets the ground at the cart-table's ZMP c - (z_c / g) a), and in double support mu where
+the plan's ZMP lies between the feet instead of the CoM. On a compliant leg this is what the
+joints must carry along the plan: in a 0.8 s / 0.3 s walk the CoM accelerates sideways at up
+to ~1 m/s^2, ~40 N m at the stance ankle roll, 70 mrad of deflection through C that the static
+(5) leaves (docs/walking.md). The vectors are in the frame of the flat support sole (a straight
+walk's world).
+
 Sign convention (settled against the MuJoCo plant's static spring torques): tau_g is the torque
 the gear spring must carry, tau_j = K (theta_m - theta_j) of (1), in each joint's own axis
 convention; f is the weight, pointing DOWN. With f pointing up (the support force the ground
@@ -80,6 +90,9 @@ class HumanoidLegGravity(GravityModel):
             raise ValueError(f"total_mass_kg must be finite and > 0, got {total_mass_kg}")
         self.total_mass_kg = mass
         self.weight_n = np.array([0.0, 0.0, -mass * gravity_m_s2])
+        self._static_weight_n = self.weight_n.copy()
+        self._planned_split: float | None = None
+        self._load_key: tuple | None = None
         self._base_rotation: np.ndarray | None = None
         self._base_key: bytes | None = None
         self._split: tuple | None = None
@@ -93,6 +106,23 @@ class HumanoidLegGravity(GravityModel):
 
     def set_support(self, support: SupportState) -> None:
         self.support = SupportState(support)
+
+    def set_planned_load(
+        self, com_acceleration_mps2: np.ndarray | None, support_split: float | None
+    ) -> None:
+        """(5)-(7) for a planned motion (module docstring): f = m (g - a) with the planned CoM
+        acceleration a, and mu = support_split in double support; None, None: the static
+        weight and mu from the CoM (the paper's)."""
+        if com_acceleration_mps2 is None:
+            self.weight_n = self._static_weight_n.copy()
+        else:
+            acceleration = np.asarray(com_acceleration_mps2, dtype=float)
+            self.weight_n = self._static_weight_n - self.total_mass_kg * acceleration
+        if support_split is not None and not 0.0 <= support_split <= 1.0:
+            raise ValueError(f"support_split must be in [0, 1], got {support_split}")
+        self._planned_split = support_split
+        loaded = com_acceleration_mps2 is not None or support_split is not None
+        self._load_key = (self.weight_n.tobytes(), support_split) if loaded else None
 
     @property
     def base_rotation(self) -> np.ndarray | None:
@@ -147,7 +177,7 @@ class HumanoidLegGravity(GravityModel):
         angles = np.asarray(link_angle_rad, dtype=float)
         if angles.shape != (N_LEG_JOINTS,):
             raise ValueError(f"link_angle_rad must have {N_LEG_JOINTS} entries, got {angles.shape}")
-        key = (angles.tobytes(), self.support, self._base_key)
+        key = (angles.tobytes(), self.support, self._base_key, self._load_key)
         if key == self._cache_key:  # a held reference (standing): no kinematics again
             return self._cache_torque.copy()
         lm = self.leg_model
@@ -166,6 +196,8 @@ class HumanoidLegGravity(GravityModel):
             mu = 0.0
         elif self.support is SupportState.RIGHT:
             mu = 1.0
+        elif self._planned_split is not None:
+            mu = self._planned_split
         else:
             # (7) as controller.gravity.support_force_split computes it, inline (hot path)
             across = right - left

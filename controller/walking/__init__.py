@@ -4,10 +4,12 @@ Footstep plan -> timeline and ZMP reference -> CoM by Kajita's ZMP preview contr
 cart-table -> quintic swing feet -> closed-form leg IK -> `WalkingPattern`, read per tick; plus
 the Kdist schedule by phase, and the lab's walking scheme around the pattern (`lab_terms`: the
 CoM feedback on the pelvis, the position-mode deflection model and support hip-roll
-offsets). Imports nothing of ours outside `controller`.
+offsets), and our CoM stabiliser (`com_stabiliser`). Imports nothing of ours outside
+`controller`.
 """
 
 from controller.walking.center_of_mass import CenterOfMassModel, PinocchioCenterOfMass
+from controller.walking.com_stabiliser import CenterOfMassStabiliser, StabiliserState
 from controller.walking.footsteps import (
     Footstep,
     FootstepPlan,
@@ -49,10 +51,12 @@ __all__ = [
     "CenterOfMassFeedback",
     "CenterOfMassMeasurement",
     "DeflectionModel",
+    "StabiliserState",
     "SupportHipRollOffsets",
     "CartTableParams",
     "CartTableTrajectory",
     "CenterOfMassModel",
+    "CenterOfMassStabiliser",
     "Footstep",
     "FootstepPlan",
     "FootstepPlanError",

@@ -16,7 +16,9 @@ hold_after_touchdown_s = None (default) the release ends with the double support
 lift-off); with a number, the gain holds that long after touchdown and then releases. The lab's
 timing on its master branch (step 1.2 s: rest 0.05, DSP 0.1, SSP 0.9, DSP 0.1, rest 0.05) is
 hold_after_touchdown_s = 0.1, release_s = 0.05 in this module's terms (its DSP 0.1 + rest 0.05
-+ rest 0.05 + DSP 0.1 are one 0.3 s double support here).
++ rest 0.05 + DSP 0.1 are one 0.3 s double support here). `KdistSchedule.lab_split` maps any
+double support onto that split (the ZMP reference's `ZmpTransition.LAB_SPLIT`): hold through
+DSP2 (t_double), release over rest_last (half of what the two moves leave).
 """
 
 from __future__ import annotations
@@ -50,6 +52,23 @@ class KdistSchedule:
         hold = self.hold_after_touchdown_s
         if hold is not None and not (math.isfinite(hold) and hold >= 0):
             raise ValueError(f"hold_after_touchdown_s must be None or >= 0, got {hold}")
+
+    @classmethod
+    def lab_split(
+        cls, stance_gain: float, double_support_s: float, move_s: float, **gains: float
+    ) -> KdistSchedule:
+        """The lab's landing gain on its step split (module docstring): held for DSP2
+        (`move_s`, its t_double) after the touchdown, released over rest_last, the half of the
+        double support the two moves leave; `gains`: landing_gain, ramp_up_s."""
+        rest_s = 0.5 * (double_support_s - 2.0 * move_s)
+        if not rest_s > 0.0:
+            raise FootstepPlanError(
+                f"the lab's split needs a double support longer than 2 x {move_s} s, got "
+                f"{double_support_s} s"
+            )
+        return cls(
+            stance_gain=stance_gain, release_s=rest_s, hold_after_touchdown_s=move_s, **gains
+        )
 
     def check_timing(self, timing: StepTiming) -> None:
         """Raise FootstepPlanError if the ramps do not fit in the plan's phases."""

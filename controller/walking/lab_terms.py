@@ -22,6 +22,18 @@ CenterOfMassFeedback (`WalkingController::getPelvTrajectory`, with `getRobotStat
       (dt / kp = 33 ms): the pelvis moves so that the legs' measured shape puts the CoM where
       the plan's shape would. It does not see the robot sway on its compliant joints (the
       pelvis is placed, not measured), and it is stable whatever that sway does.
+    - "measured-pelvis" (the lab's May-June 2018 form, 5628d3b7 kp 0.9, e65f1a41 and 08561284
+      kp 1.0: `pelv_support_current_` and `com_support_current_` both from the measured joint
+      angles with the support foot as the root): no integral,
+
+          pelvis(k) = pelvis measured(k) + kp (c_desired(k) - c_measured(k))      (x, y),
+
+      both measured with the stance sole flat at its planned place (the lab's robot measured
+      its motor angles; here the link angles). With c = pelvis + r(angles), the sway the
+      robot makes on its joints enters pelvis measured and c_measured alike: at kp = 1 the
+      pelvis goes to c_desired - r(measured angles), the plan's pelvis moved by the measured
+      legs' shape, and the sway cancels; at kp < 1 a share 1 - kp of the measured CoM error
+      is added to the command (a positive feedback of 0.1 at kp = 0.9, softening the sway).
     - "stance-sole": the whole CoM from the link angles with the stance sole flat at its
       planned place (what the robot's own encoders say of the sway). The correction then
       integrates the whole CoM error at kp / dt (30 1/s at 0.15): in steady state the CoM is
@@ -73,6 +85,7 @@ class CenterOfMassMeasurement(enum.StrEnum):
     """Where the CoM feedback's measured CoM comes from (module docstring)."""
 
     COMMANDED_PELVIS = "commanded-pelvis"  # the lab's master: measured shape, placed pelvis
+    MEASURED_PELVIS = "measured-pelvis"  # the lab's 2018: pelvis and CoM both measured
     STANCE_SOLE = "stance-sole"  # the whole robot from its encoders, the stance sole flat
 
 
@@ -93,16 +106,37 @@ class CenterOfMassFeedback:
             raise ValueError(f"max_correction_m must be > 0, got {self.max_correction_m}")
         object.__setattr__(self, "measured_from", CenterOfMassMeasurement(self.measured_from))
 
+    @property
+    def integrates(self) -> bool:
+        """The correction accumulates per tick (every form but "measured-pelvis")."""
+        return self.measured_from is not CenterOfMassMeasurement.MEASURED_PELVIS
+
     def update(
         self, correction_m: np.ndarray, desired_com_m: np.ndarray, measured_com_m: np.ndarray
     ) -> np.ndarray:
         """correction + kp (desired - measured) in x, y, its length capped: the new (2,)."""
         error = np.asarray(desired_com_m, dtype=float)[:2] - np.asarray(measured_com_m)[:2]
         updated = np.asarray(correction_m, dtype=float) + self.gain_per_tick * error
-        length = float(np.hypot(*updated))
+        return self._bounded(updated)
+
+    def measured_pelvis_correction(
+        self,
+        planned_pelvis_m: np.ndarray,
+        measured_pelvis_m: np.ndarray,
+        desired_com_m: np.ndarray,
+        measured_com_m: np.ndarray,
+    ) -> np.ndarray:
+        """The "measured-pelvis" form (module docstring): pelvis measured + kp (desired -
+        measured CoM), returned as its offset from the planned pelvis (x, y), capped."""
+        error = np.asarray(desired_com_m, dtype=float)[:2] - np.asarray(measured_com_m)[:2]
+        pelvis = np.asarray(measured_pelvis_m, dtype=float)[:2] + self.gain_per_tick * error
+        return self._bounded(pelvis - np.asarray(planned_pelvis_m, dtype=float)[:2])
+
+    def _bounded(self, correction_m: np.ndarray) -> np.ndarray:
+        length = float(np.hypot(*correction_m))
         if length > self.max_correction_m:
-            updated *= self.max_correction_m / length
-        return updated
+            correction_m = correction_m * (self.max_correction_m / length)
+        return correction_m
 
 
 @dataclass(frozen=True)

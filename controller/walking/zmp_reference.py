@@ -8,8 +8,23 @@ be an instantaneous ZMP error of the jump's size, since the cart-table's ZMP
 p - (zc/g) p'' is continuous under a jerk input.
 
 A foot's ZMP point is its ankle projection plus an offset in the foot frame: forward_offset_m
-along the foot and inward_offset_m towards the other foot (the lab's code shifted its
-reference 0.02-0.04 m inward; the default here is 0).
+along the foot and inward_offset_m towards the other foot (the lab's code shifts its reference
+inward by 0.02 m in 2018 and 0.04 m on master: psh117/dyros_jet, walking_controller.cpp,
+`addZmpOffset`, lfoot_zmp_offset_ / rfoot_zmp_offset_; the default here is 0).
+
+The double-support transition (`ZmpTransition`):
+    LINEAR, SMOOTH   one move over the whole double support, from the stance foot it leaves to
+                     the one it goes to (ours);
+    LAB_SPLIT        the lab's step timing (walking_controller.cpp, `onestepZmp`): a step is
+                     rest_init, DSP1 (t_double1), SSP, DSP2 (t_double2), rest_last, so the
+                     double support between two single supports is DSP2 + rest_last + the next
+                     step's rest_init + DSP1. The ZMP moves linearly in DSP2 from the foot it
+                     leaves to the middle of the feet, holds there through the rests, and moves
+                     linearly in DSP1 to the next stance foot. `lab_move_s` is t_double (0.1 s
+                     in 2018 and on master), each ramp reaching its end value on its last tick as
+                     the lab's K / t_double (i + 1) does. A double support with nothing to leave
+                     (the walk's first) holds the middle, one with nowhere to go (the last)
+                     stays there.
 
 The reference asks no more preview than the plan holds when the plan starts with a rest at
 least as long as the preview horizon (the preview then sees only the constant rest value from
@@ -30,16 +45,19 @@ from controller.walking.timeline import SegmentKind, WalkTimeline
 
 
 class ZmpTransition(Enum):
-    """Shape of the double-support transition, s in [0, 1): LINEAR s, SMOOTH 3 s^2 - 2 s^3
-    (zero slope at both ends)."""
+    """Shape of the double-support transition (module docstring); for the one-move shapes,
+    s in [0, 1): LINEAR s, SMOOTH 3 s^2 - 2 s^3 (zero slope at both ends)."""
 
     LINEAR = "linear"
     SMOOTH = "smooth"
+    LAB_SPLIT = "lab-split"
 
     def blend(self, s: np.ndarray) -> np.ndarray:
         if self is ZmpTransition.LINEAR:
             return s
-        return s * s * (3.0 - 2.0 * s)
+        if self is ZmpTransition.SMOOTH:
+            return s * s * (3.0 - 2.0 * s)
+        raise ValueError("the lab's split is two moves, not one blend")
 
 
 @dataclass(frozen=True)
@@ -47,6 +65,7 @@ class ZmpReferenceParams:
     transition: ZmpTransition = ZmpTransition.LINEAR
     forward_offset_m: float = 0.0
     inward_offset_m: float = 0.0
+    lab_move_s: float = 0.1  # LAB_SPLIT's t_double (the lab's 0.1 s)
 
     def __post_init__(self) -> None:
         if not isinstance(self.transition, ZmpTransition):
@@ -54,6 +73,8 @@ class ZmpReferenceParams:
         for name in ("forward_offset_m", "inward_offset_m"):
             if not math.isfinite(getattr(self, name)):
                 raise FootstepPlanError(f"{name} must be finite, got {getattr(self, name)}")
+        if not (math.isfinite(self.lab_move_s) and self.lab_move_s > 0):
+            raise FootstepPlanError(f"lab_move_s must be finite and > 0, got {self.lab_move_s}")
 
 
 def foot_zmp_point(step: Footstep, params: ZmpReferenceParams) -> np.ndarray:
@@ -79,8 +100,10 @@ def zmp_reference(timeline: WalkTimeline, params: ZmpReferenceParams) -> np.ndar
     reference = np.empty((timeline.n_ticks, 2))
     current = midpoint()
     targets: list[np.ndarray] = []
+    middles: list[np.ndarray] = []  # between the feet on the ground in that segment
     # The ZMP target each segment ends at, in segment order (feet updated at touchdowns).
     for seg in timeline.segments:
+        middles.append(midpoint())
         if seg.kind is SegmentKind.SINGLE_SUPPORT:
             step = plan.footsteps[seg.footstep_index]
             targets.append(foot_zmp_point(feet[step.side.other], params))
@@ -92,13 +115,38 @@ def zmp_reference(timeline: WalkTimeline, params: ZmpReferenceParams) -> np.ndar
     for index, seg in enumerate(timeline.segments):
         if seg.kind is SegmentKind.DOUBLE_SUPPORT:
             targets[index] = targets[index + 1]
-    for seg, target in zip(timeline.segments, targets, strict=True):
+    for seg, target, middle in zip(timeline.segments, targets, middles, strict=True):
         rows = slice(seg.start_tick, seg.end_tick)
-        if seg.kind is SegmentKind.DOUBLE_SUPPORT:
+        if seg.kind is not SegmentKind.DOUBLE_SUPPORT:
+            reference[rows] = target
+        elif params.transition is ZmpTransition.LAB_SPLIT:
+            reference[rows] = _lab_split(current, middle, target, seg.n_ticks, timeline, params)
+        else:
             s = np.arange(seg.n_ticks) / seg.n_ticks
             weight = params.transition.blend(s)[:, None]
             reference[rows] = (1.0 - weight) * current + weight * target
-        else:
-            reference[rows] = target
         current = target
     return reference
+
+
+def _lab_split(
+    start: np.ndarray,
+    middle: np.ndarray,
+    end: np.ndarray,
+    n_ticks: int,
+    timeline: WalkTimeline,
+    params: ZmpReferenceParams,
+) -> np.ndarray:
+    """One double support of the lab's split (module docstring): start -> middle in the first
+    n_move ticks, held, middle -> end in the last n_move ticks."""
+    n_move = round(params.lab_move_s / timeline.dt_s)
+    if n_move < 1 or 2 * n_move > n_ticks:
+        raise FootstepPlanError(
+            f"the lab's split needs two moves of lab_move_s = {params.lab_move_s} s (>= 1 tick "
+            f"each) in the double support of {n_ticks * timeline.dt_s:.3f} s"
+        )
+    ramp = (np.arange(n_move) + 1.0)[:, None] / n_move
+    rows = np.repeat(middle[None, :], n_ticks, axis=0)
+    rows[:n_move] = start + ramp * (middle - start)
+    rows[n_ticks - n_move :] = middle + ramp * (end - middle)
+    return rows

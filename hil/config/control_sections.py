@@ -103,10 +103,16 @@ class ControllerSection(Section):
     stiffness, which is what the joint deflects under a load on the time scale of a step;
     "gear", the paper's literal K^-1, exact only for a servo that holds any load without lag
     (its model (4)). controller/gravity.py derives it; docs/humanoid.md compares the two.
+    gc_load: what (5)-(7) hold where the experiment plans a motion (the walks): "weight" (the
+    paper's: the static weight, split at the CoM) or "planned-motion" (ours, beyond the 2018
+    paper: the ground reaction the plan needs, m (g - a_com), split at the plan's ZMP;
+    controller/planned_motion.py, controller/humanoid/gravity.py). Without a plan (standing,
+    the testbed) both are the paper's.
     """
 
     name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
     gc_compliance: GcCompliance = Field(GcCompliance.JOINT, strict=False)
+    gc_load: Literal["weight", "planned-motion"] = "weight"
     kdist: float = Field(1.0, ge=0)
     kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
     q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
@@ -119,6 +125,7 @@ class ControllerSection(Section):
     discretization: str = "euler"  # the LQR design
     kdist_reference: Literal["per-tick", "paper-yield"] = "per-tick"  # what Kdist yields against
     reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments
+    servo_feedforward: bool = False  # with a plan: the goal leads by the servo's lag, v / Kp
     link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")
@@ -168,6 +175,12 @@ class WalkingSection(Section):
         default controller only (`pid`: the actuator's own position control; the lab applied
         them with its LQR off): the Humanoids-2016 deflection model a tau + b on hip pitch,
         knee and ankle pitch, and the support hip roll's ramped offsets (4 / 8.5 deg).
+    com_measured_from "measured-pelvis": the lab's May-June 2018 form (pelvis measured + kp
+        (CoM desired - CoM measured), kp 0.9-1.0, both measured with the stance sole flat).
+    com_stabiliser_gain, com_stabiliser_damping_s: ours, beyond the paper
+        (controller/walking/com_stabiliser.py): every controller's commanded pelvis moves by
+        -(gain e + damping e') with e the whole CoM's error measured from the link encoders
+        (the stance sole flat); gain 0 and damping 0 turn it off.
     """
 
     com_feedback_gain: float = Field(0.15, ge=0, le=1)
@@ -177,3 +190,5 @@ class WalkingSection(Section):
     )
     deflection_model: bool = True
     support_hip_roll_offsets: bool = True
+    com_stabiliser_gain: float = Field(0.0, ge=0, le=10)
+    com_stabiliser_damping_s: float = Field(0.0, ge=0, le=1)

@@ -179,6 +179,13 @@ class Experiment(abc.ABC):
         ramps between values), or None: the run's constant `kdist`."""
         return None
 
+    def planned_motion(self, time_s: float) -> Any:
+        """What the experiment's plan says at `time_s` beyond the reference (a
+        `controller.PlannedMotion`: the reference's planned increments, the planned CoM
+        acceleration and ZMP split), or None: no plan (the controller sees the reference
+        alone)."""
+        return None
+
     # --- open-loop goals ---------------------------------------------------------------------
     @property
     def open_loop(self) -> bool:

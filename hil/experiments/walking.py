@@ -79,6 +79,11 @@ OBJECT_HEIGHT_M = 0.015
 OBJECT_FOOTSTEP = 2  # the right foot's second step
 OBJECT_MARGIN_M = 0.02  # the box reaches this far beyond the planned sole on every side
 EDGE_MARGIN_M = 0.01
+# The lab's ZMP reference (psh117/dyros_jet, walking_controller.cpp): each foot's point shifted
+# inward by 0.02 m (`addZmpOffset`, 2018; 0.04 m on master), the double support split into its
+# DSP2, rests and DSP1 with moves of t_double = 0.1 s (`parameterSetting`, `onestepZmp`).
+LAB_ZMP_INWARD_OFFSET_M = 0.02
+LAB_ZMP_MOVE_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -95,6 +100,10 @@ class WalkingExperiment(Experiment):
     step_length_m: float = STEP_LENGTH_M
     world: World = World()
     object_footstep: int | None = None  # the footstep the world's object lies under
+    # The ZMP reference: how far each foot's point lies inward of its sole's centre, and the
+    # double support's shape (controller.walking.ZmpTransition: "lab-split", "smooth", "linear")
+    zmp_inward_offset_m: float = LAB_ZMP_INWARD_OFFSET_M
+    zmp_transition: str = "lab-split"
 
     # --- the plan and its pattern ----------------------------------------------------------
     @functools.cached_property
@@ -148,7 +157,10 @@ class WalkingExperiment(Experiment):
         params = WalkingParams(
             com_height_m=com_height,
             zmp=ZmpReferenceParams(
-                transition=ZmpTransition.SMOOTH, forward_offset_m=SOLE_CENTRE_AHEAD_OF_ANKLE_M
+                transition=ZmpTransition(self.zmp_transition),
+                forward_offset_m=SOLE_CENTRE_AHEAD_OF_ANKLE_M,
+                inward_offset_m=self.zmp_inward_offset_m,
+                lab_move_s=LAB_ZMP_MOVE_S,
             ),
         )
         com = PinocchioCenterOfMass(model.model, LEG_JOINT_NAMES)
@@ -193,8 +205,27 @@ class WalkingExperiment(Experiment):
     def kdist_at(self, time_s: float, kdist: float) -> np.ndarray | None:
         from controller.walking import KdistSchedule, kdist_per_joint
 
-        schedule = KdistSchedule(stance_gain=kdist)
+        # the lab's landing gain on the lab's step split (whatever the ZMP's shape)
+        schedule = KdistSchedule.lab_split(kdist, self.double_support_s, LAB_ZMP_MOVE_S)
         return kdist_per_joint(self.pattern.timeline.phase(self._tick(time_s)), schedule)
+
+    def planned_motion(self, time_s: float) -> Any:
+        """The pattern at this tick (controller.PlannedMotion): the joints' planned increments,
+        the planned CoM acceleration and the planned ZMP's split between the feet."""
+        from controller import PlannedMotion
+
+        tables = self._planned_tables
+        tick = self._tick(time_s)
+        return PlannedMotion(
+            tables.increment[tick],
+            tables.velocity_increment[tick],
+            self.pattern.com_acceleration_mps2[tick],
+            float(tables.split[tick]),
+        )
+
+    @functools.cached_property
+    def _planned_tables(self) -> PlannedTables:
+        return PlannedTables.of(self.pattern)
 
     # --- after a run -----------------------------------------------------------------------
     @property
@@ -276,6 +307,41 @@ class WalkingExperiment(Experiment):
         return {"walk-slow": "fig7a_walk_slow.png", "walk-dynamic": "fig7b_walk_dynamic.png"}.get(
             self.name, "fig8_step_on_object.png"
         )
+
+
+@dataclass(frozen=True)
+class PlannedTables:
+    """A pattern's planned motion per tick (n ticks): the joints' increments theta(k) -
+    theta(k-1) (n, 12) and their velocity increments (n, 12) [rad/s], and where the planned
+    ZMP lies between the feet's ZMP points, 0 at the left's, 1 at the right's (n,): (7)'s mu of
+    the plan (at the end of each double support the ZMP is on the next stance foot's point,
+    so mu meets the single support's 0 or 1 without a jump)."""
+
+    increment: np.ndarray
+    velocity_increment: np.ndarray
+    split: np.ndarray
+
+    @classmethod
+    def of(cls, pattern: Any) -> PlannedTables:
+        from controller.walking.dyros_jet_figures import SOLE_CENTRE_AHEAD_OF_ANKLE_M
+
+        angles = pattern.joint_angles_rad
+        increment = np.diff(angles, axis=0, prepend=angles[:1])
+        velocity = increment / pattern.dt_s
+        velocity_increment = np.diff(velocity, axis=0, prepend=velocity[:1])
+        inward = pattern.params.zmp.inward_offset_m
+        points = pattern.foot_position_m[:, :, :2].copy()
+        yaw = pattern.foot_yaw_rad
+        for side, sign in ((0, 1.0), (1, -1.0)):  # each foot's ZMP point (zmp_reference.py)
+            along, across = SOLE_CENTRE_AHEAD_OF_ANKLE_M, -sign * inward
+            points[:, side, 0] += np.cos(yaw[:, side]) * along - np.sin(yaw[:, side]) * across
+            points[:, side, 1] += np.sin(yaw[:, side]) * along + np.cos(yaw[:, side]) * across
+        span = points[:, 1] - points[:, 0]
+        offset = pattern.zmp_reference_m - points[:, 0]
+        split = np.clip(np.sum(offset * span, axis=1) / np.sum(span * span, axis=1), 0.0, 1.0)
+        for array in (increment, velocity_increment, split):
+            array.setflags(write=False)
+        return cls(increment, velocity_increment, split)
 
 
 # --- the experiments ------------------------------------------------------------------------

@@ -103,6 +103,7 @@ def build_controller(
         servo_cascade=servo_cascade(config),
         kdist_reference=section.kdist_reference,
         reference_feedforward=section.reference_feedforward,
+        servo_feedforward=section.servo_feedforward,
     )
     sm = robot.sm(start, contact)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

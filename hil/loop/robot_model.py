@@ -39,6 +39,10 @@ class RobotModel(abc.ABC):
     def set_support(self, support: object) -> None:  # noqa: B027 - only the humanoid has one
         """The support state the gravity compensator splits the weight by."""
 
+    def set_planned_motion(self, motion: object) -> None:  # noqa: B027 - only the humanoid's
+        """The plan's motion this tick (controller.PlannedMotion) or None: what the gravity
+        compensator holds under `[controller] gc_load = "planned-motion"`."""
+
     def lqr_contacts(self, supports: list[object]) -> list[object]:
         """The LQR's contact per tick for a run's support state per tick (no feet: None)."""
         return [None] * len(supports)
@@ -67,6 +71,7 @@ class HumanoidLegs(RobotModel):
         joint_names: tuple[str, ...],
         contact_rule: str = "both-feet",
         standing_foot: str = "left",
+        planned_load: bool = False,
     ) -> None:
         from controller.humanoid import (  # pinocchio: only when a humanoid is configured
             LEG_JOINT_NAMES,
@@ -94,12 +99,21 @@ class HumanoidLegs(RobotModel):
         self._contact_rule = SmContactRule(contact_rule)
         self._standing_foot = LqrContact(f"{standing_foot}-foot")
         self._contact_type = LqrContact
+        self._planned_load = planned_load  # [controller] gc_load = "planned-motion"
 
     def sm(self, link_angle_rad: np.ndarray, contact: object) -> np.ndarray:
         return self._inertia.sm(link_angle_rad, self._contact_type(contact), self._coupling)
 
     def set_support(self, support: object) -> None:
         self.gravity.set_support(self.support_type(support))
+
+    def set_planned_motion(self, motion: object) -> None:
+        if not self._planned_load:
+            return
+        if motion is None:
+            self.gravity.set_planned_load(None, None)
+        else:
+            self.gravity.set_planned_load(motion.com_acceleration_mps2, motion.support_split)
 
     def lqr_contacts(self, supports: list[object]) -> list[object]:
         from controller.humanoid import lqr_contact_schedule
@@ -117,5 +131,6 @@ def robot_model(config: Config) -> RobotModel:
             config.joint_names,
             model.sm_contact,
             model.sm_standing_foot,
+            planned_load=config.controller.gc_load == "planned-motion",
         )
     return SingleLinks(len(config.joints), model.link_inertia_kg_m2, model.gravity_moment_kg_m)

@@ -422,6 +422,9 @@ class Loop:
         if self.scheduler is not None:
             lead = self.scheduler.lead_ticks
             self.scheduler.update(k, link, self._lqr_contact(k), self._lqr_contact(k + lead))
+        motion = self.experiment.planned_motion(time_s)  # a walk's plan: GC load, LQR
+        self.robot.set_planned_motion(motion)
+        self.controller.set_planned_motion(motion)
         if self.request.choice.kind.has_dob:
             kdist = self.experiment.kdist_at(time_s, self.request.choice.kdist)
             if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):

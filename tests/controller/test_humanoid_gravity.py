@@ -175,3 +175,69 @@ def test_half_rotation_matches_pinocchio() -> None:
         vector = angle * direction / np.linalg.norm(direction)
         rotation = pin.exp3(vector)
         assert np.allclose(_half_rotation(rotation), pin.exp3(0.5 * vector), atol=1e-12)
+
+
+def accelerating_potential_torque(
+    model: LegModel, angles: np.ndarray, side: int, acceleration: np.ndarray
+) -> np.ndarray:
+    """d/dtheta of m (g z + a) . c by central differences, sole `side` the fixed root: the
+    holding torque of the robot whose every body accelerates with its CoM at `a` (d'Alembert:
+    gravity g - a), no Jacobian of ours involved."""
+    direction = np.array([0.0, 0.0, G]) + acceleration
+    torque = np.zeros(12)
+    h = 1e-6
+    for j in range(12):
+        values = []
+        for sign in (+1, -1):
+            perturbed = angles.copy()
+            perturbed[j] += sign * h
+            q = model.standing_configuration(perturbed, side)
+            values.append(model.total_mass_kg * direction @ model.centre_of_mass(q))
+        torque[j] = (values[0] - values[1]) / (2 * h)
+    return torque
+
+
+@pytest.mark.parametrize("angles", [READY, BENT], ids=["ready", "bent"])
+def test_the_planned_load_is_the_holding_torque_under_g_minus_a(
+    model: LegModel, angles: np.ndarray
+) -> None:
+    """(5) for a planned motion (ours): f = m (g - a) through the CoM. On one foot it equals the
+    gradient of m (g z + a) . c with the stance sole fixed, for a walk's accelerations (~1 m/s^2
+    sideways and forwards), and the stance ankle roll's torque changes by m a_y times the CoM's
+    height above the ankle axis (the cart-table's ZMP shift (z_c / g) a_y, times m g)."""
+    acceleration = np.array([0.6, -1.1, 0.0])
+    gc = HumanoidLegGravity(model, SupportState.LEFT)
+    static = gc.gravity_torque(angles)
+    gc.set_planned_load(acceleration, None)
+    planned = gc.gravity_torque(angles)
+    expected = accelerating_potential_torque(model, angles, 0, acceleration)
+    assert np.allclose(planned, expected, atol=1e-5)
+    q = model.standing_configuration(angles, 0)
+    model.update_kinematics(q)
+    height = model.centre_of_mass(q)[2] - model.ft_sensor_placement(0).translation[2]
+    if np.allclose(angles, READY):  # the ankle roll axis is level at the walking-ready posture
+        roll_change = abs(planned[5] - static[5])
+        assert roll_change == pytest.approx(model.total_mass_kg * 1.1 * height, rel=0.02)
+    gc.set_planned_load(None, None)
+    assert np.array_equal(gc.gravity_torque(angles), static)
+
+
+def test_the_planned_split_replaces_the_coms_in_double_support(model: LegModel) -> None:
+    """In double support the planned ZMP's mu replaces the CoM's in (6)-(7) (the forces split
+    (1 - mu, mu)); given the CoM's own mu it is the paper's split, to round-off; the support
+    state's 0 and 1 stay in single support."""
+    gc = HumanoidLegGravity(model, SupportState.DOUBLE)
+    static = gc.gravity_torque(BENT)
+    mu = gc.last_split.mu
+    gc.set_planned_load(None, 0.3)
+    planned = gc.gravity_torque(BENT)
+    split = gc.last_split
+    assert split.mu == 0.3
+    assert np.allclose(split.left_force_n, 0.7 * gc.weight_n)
+    assert np.max(np.abs(planned - static)) > 1.0
+    gc.set_planned_load(None, mu)
+    assert np.allclose(gc.gravity_torque(BENT), static, atol=1e-9)
+    gc.set_support(SupportState.RIGHT)
+    gc.set_planned_load(None, 0.3)
+    gc.gravity_torque(BENT)
+    assert gc.last_split.mu == 1.0

@@ -102,3 +102,28 @@ def test_per_joint_vector_repeats_each_legs_gain_over_its_six_joints():
     touchdown = int(timeline.touchdown_ticks[0])  # the right leg has just landed
     gains = kdist_per_joint(timeline.phase(touchdown), KdistSchedule())
     assert gains.tolist() == [0.2] * 6 + [1.0] * 6
+
+
+def test_the_labs_split_holds_for_dsp2_and_releases_over_rest_last():
+    """On the lab's step split (walking_controller.cpp, 2018): 1.0 from the touchdown through
+    DSP2 (t_double = 0.1 s), then a cubic back to the stance gain over rest_last, half of what
+    the two 0.1 s moves leave of the double support: 0.05 s in the dynamic walk, 1.5 s in the
+    slow one."""
+    dynamic = KdistSchedule.lab_split(0.2, 0.3, 0.1)
+    assert (dynamic.hold_after_touchdown_s, dynamic.release_s) == pytest.approx((0.1, 0.05))
+    slow = KdistSchedule.lab_split(0.2, 3.2, 0.1)
+    assert (slow.hold_after_touchdown_s, slow.release_s) == pytest.approx((0.1, 1.5))
+    plan = straight_walk_plan(3, 0.2, StepTiming(0.8, 0.3, 1.6, 0.5))
+    timeline = WalkTimeline(plan, DT)
+    after = timeline.segments[3]  # the double support after the right foot's touchdown
+    start = after.start_tick
+
+    def right(ticks_after_touchdown: int) -> float:
+        return kdist_gain(Side.RIGHT, timeline.phase(start + ticks_after_touchdown), dynamic)
+
+    assert right(0) == right(19) == 1.0  # DSP2
+    assert right(22) == pytest.approx(0.2 + 0.8 * (1 - (3 * 0.2**2 - 2 * 0.2**3)))  # s = 2/10
+    assert right(30) == right(59) == 0.2  # released 0.15 s after the touchdown
+    assert kdist_gain(Side.LEFT, timeline.phase(start + 5), dynamic) == 0.2
+    with pytest.raises(FootstepPlanError, match="longer than 2 x"):
+        KdistSchedule.lab_split(0.2, 0.2, 0.1)

@@ -20,6 +20,8 @@ from controller.humanoid import (
 )
 from controller.walking import (
     CenterOfMassFeedback,
+    CenterOfMassMeasurement,
+    CenterOfMassStabiliser,
     DeflectionModel,
     Side,
     StepTiming,
@@ -46,6 +48,52 @@ def test_com_feedback_adds_kp_times_the_error_and_caps_the_correction() -> None:
     assert correction == pytest.approx([0.015, 0.0])
     with pytest.raises(ValueError):
         CenterOfMassFeedback(0.0)
+
+
+def test_the_2018_form_is_the_measured_pelvis_plus_kp_times_the_error() -> None:
+    """The lab's May-June 2018 form, pelvis = pelvis measured + kp (c_desired - c_measured),
+    returned as its offset from the plan's pelvis, by hand: no memory, the cap kept; a sway s
+    that moves pelvis and CoM alike leaves (1 - kp) s."""
+    feedback = CenterOfMassFeedback(1.0, 0.05, CenterOfMassMeasurement.MEASURED_PELVIS)
+    assert not feedback.integrates
+    plan = np.array([0.10, 0.02, 0.80])
+    offset = feedback.measured_pelvis_correction(
+        plan, [0.11, 0.01, 0.79], [0.12, 0.05, 0.7], [0.125, 0.045, 0.69]
+    )
+    assert offset == pytest.approx([0.11 - 0.005 - 0.10, 0.01 + 0.005 - 0.02])
+    sway = np.array([0.0, 0.02, 0.0])
+    for kp in (1.0, 0.9):
+        feedback = CenterOfMassFeedback(kp, 0.05, CenterOfMassMeasurement.MEASURED_PELVIS)
+        com = plan + np.array([0.01, 0.0, -0.1])  # the plan's CoM hangs 1 cm ahead, 10 cm low
+        offset = feedback.measured_pelvis_correction(plan, plan + sway, com, com + sway)
+        assert offset == pytest.approx((1.0 - kp) * sway[:2], abs=1e-15)
+    far = feedback.measured_pelvis_correction(plan, plan + 1.0, com, com)
+    assert math.hypot(*far) == pytest.approx(0.05)
+
+
+def test_the_com_stabiliser_is_a_pd_on_the_measured_error() -> None:
+    """Ours: -(gain e + damping e'), e' the error's difference low-passed at the cut-off. A
+    constant error: -gain e from the first tick (no rate); an error growing at r: the rate's
+    filter converges to r, so -(gain e + damping r); the correction's length is capped."""
+    stabiliser = CenterOfMassStabiliser(gain=1.0, damping_s=0.2, velocity_cutoff_hz=10.0)
+    state = stabiliser.tracker(0.005)
+    assert state.correction([0.01, 0.0, 0.8], [0.0, 0.0, 0.8]) == pytest.approx([-0.01, 0.0])
+    rate = np.array([0.0, 0.02])  # m/s
+    state = stabiliser.tracker(0.005)
+    for k in range(200):
+        error = rate * 0.005 * k
+        correction = state.correction(error, [0.0, 0.0])
+    assert state.error_rate == pytest.approx(rate, rel=1e-9)
+    assert correction == pytest.approx(-(error + 0.2 * rate), rel=1e-9)
+    pole = math.exp(-2 * math.pi * 10.0 * 0.005)  # one tick of the filter, by hand
+    state = stabiliser.tracker(0.005)
+    state.correction([0.0, 0.0], [0.0, 0.0])
+    step = state.correction([0.0, 0.001], [0.0, 0.0])
+    assert step[1] == pytest.approx(-(0.001 + 0.2 * (1 - pole) * 0.001 / 0.005))
+    capped = stabiliser.tracker(0.005).correction([1.0, 1.0], [0.0, 0.0])
+    assert math.hypot(*capped) == pytest.approx(0.05)
+    with pytest.raises(ValueError):
+        CenterOfMassStabiliser(gain=-1.0)
 
 
 def test_deflection_model_by_hand() -> None:

@@ -241,3 +241,51 @@ def test_mirror_plan_mirrors_the_com():
         left_first.com_position_m[:, 1], -right_first.com_position_m[:, 1], atol=1e-12
     )
     assert np.allclose(left_first.com_position_m[:, 0], right_first.com_position_m[:, 0])
+
+
+@pytest.mark.parametrize("inward", [0.02, 0.04])  # the lab's 2018 and master shifts
+def test_the_inward_shift_moves_each_stance_point_by_exactly_its_amount(inward):
+    """In every single support the reference moves towards the other foot by the shift, not a
+    tick's worth more; the rests (between the feet) do not move."""
+    plan = straight_walk_plan(4, 0.2, DYNAMIC)
+    timeline = WalkTimeline(plan, DT)
+    plain = zmp_reference(timeline, ZmpReferenceParams())
+    shifted = zmp_reference(timeline, ZmpReferenceParams(inward_offset_m=inward))
+    for seg in timeline.segments:
+        rows = slice(seg.start_tick, seg.end_tick)
+        if seg.kind.value == "single_support":
+            towards_other = -seg.landing_side.other.lateral_sign  # stance foot -> other foot
+            assert np.array_equal(shifted[rows, 0], plain[rows, 0])
+            assert np.allclose(shifted[rows, 1] - plain[rows, 1], towards_other * inward, atol=1e-15)
+        elif seg.kind.value != "double_support":
+            assert np.array_equal(shifted[rows], plain[rows])
+
+
+def test_the_labs_split_moves_to_the_middle_holds_and_moves_on():
+    """The lab's step split (walking_controller.cpp `onestepZmp`): in the double support
+    between a left and a right stance, the first 0.1 s move linearly from the left point to
+    the middle of the feet, reaching it on their last tick, the middle holds, the last 0.1 s
+    move to the right point; the walk's first double support holds the middle and then moves,
+    its last moves and then holds."""
+    plan = straight_walk_plan(3, 0.2, DYNAMIC)
+    timeline = WalkTimeline(plan, DT)
+    params = ZmpReferenceParams(transition=ZmpTransition.LAB_SPLIT, inward_offset_m=0.02)
+    ref = zmp_reference(timeline, params)
+    moves = 20  # 0.1 s
+    ramp = (np.arange(moves) + 1.0) / moves
+    left, right = np.array([0.0, W - 0.02]), np.array([0.2, -(W - 0.02)])
+    segments = timeline.segments
+    between = segments[3]  # after the first swing (the right foot lands at x = 0.2)
+    assert between.kind.value == "double_support" and between.n_ticks == 60
+    rows = ref[between.start_tick : between.end_tick]
+    middle = np.array([0.1, 0.0])  # the sole points' middle (the shifts cancel)
+    assert np.allclose(rows[:moves], left + ramp[:, None] * (middle - left), atol=1e-15)
+    assert np.allclose(rows[moves:-moves], middle, atol=1e-15)
+    assert np.allclose(rows[-moves:], middle + ramp[:, None] * (right - middle), atol=1e-15)
+    first = ref[segments[1].start_tick : segments[1].end_tick]
+    assert np.allclose(first[:-moves], [0.0, 0.0]) and np.allclose(first[-1], left)
+    last = ref[segments[-2].start_tick : segments[-2].end_tick]
+    assert np.allclose(last[moves - 1 :], [0.4, 0.0], atol=1e-15)
+    short = StepTiming(0.8, 0.15, 1.6, 1.0)  # no room for two 0.1 s moves
+    with pytest.raises(FootstepPlanError, match="two moves"):
+        zmp_reference(WalkTimeline(straight_walk_plan(2, 0.2, short), DT), params)

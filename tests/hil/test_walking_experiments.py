@@ -93,6 +93,31 @@ def test_support_and_kdist_follow_the_phase() -> None:
     assert np.allclose(kdist[6:], 1.0) and np.allclose(kdist[:6], 0.2)  # the landing (right) leg
 
 
+def test_the_planned_motion_is_the_patterns(model) -> None:
+    """What the walk hands the controller each tick (controller.PlannedMotion): the pattern's
+    joint increments and their velocity increments, its CoM acceleration, and (7)'s mu of its
+    ZMP between the feet's ZMP points: 0.5 in the rest, 0 where the reference reaches the
+    left stance point at the end of the first double support, 0.5 on the lab split's middle
+    hold after the right foot lands."""
+    experiment = WALK_DYNAMIC
+    pattern = experiment.pattern
+    angles, dt = pattern.joint_angles_rad, pattern.dt_s
+    timeline = pattern.timeline
+    first_double, first_single, after = timeline.segments[1:4]
+    for tick in (0, 400, first_single.start_tick + 30, after.start_tick + 30):
+        motion = experiment.planned_motion(tick * dt)
+        increment = angles[tick] - angles[max(tick - 1, 0)]
+        before = angles[max(tick - 1, 0)] - angles[max(tick - 2, 0)]
+        assert np.array_equal(motion.reference_increment_rad, increment)
+        assert np.allclose(motion.reference_velocity_increment_rad_s, (increment - before) / dt)
+        assert np.array_equal(motion.com_acceleration_mps2, pattern.com_acceleration_mps2[tick])
+    assert experiment.planned_motion(1.0).support_split == pytest.approx(0.5)
+    last = experiment.planned_motion((first_double.end_tick - 1) * dt)
+    assert last.support_split == pytest.approx(0.0, abs=1e-12)
+    hold = experiment.planned_motion((after.start_tick + 30) * dt)
+    assert hold.support_split == pytest.approx(0.5, abs=1e-12)
+
+
 def test_the_object_lies_under_its_footstep_and_nowhere_else(config) -> None:
     (box,) = STEP_ON_OBJECT.world.floor_objects
     assert box.height_m == OBJECT_HEIGHT_M

@@ -34,7 +34,7 @@ def test_the_default_controller_gets_the_position_mode_terms_every_controller_th
     pid = WALK_SLOW.reference_feedback(config, ControllerChoice(ControllerKind.PID))
     assert pid.com_feedback is not None and pid.deflection is not None
     assert pid.hip_roll is not None
-    assert "deflection model" in pid.describe() and "commanded-pelvis" in pid.describe()
+    assert "deflection model" in pid.describe() and "measured-pelvis" in pid.describe()
     for kind in (ControllerKind.GC, ControllerKind.GC_LQR, ControllerKind.GC_LQR_DOB):
         scheme = WALK_SLOW.reference_feedback(config, ControllerChoice(kind, 0.2))
         assert scheme.com_feedback is not None
@@ -66,7 +66,8 @@ def test_the_correction_is_kp_times_the_measured_com_error(config) -> None:
     c_measured), c_measured the measured legs' CoM hung from the plan's pelvis (the lab's
     master); the new reference puts both ankles where the plan does, with the pelvis moved by
     the correction."""
-    scheme = LabWalkingScheme.for_run(PATTERN, config, ControllerChoice(ControllerKind.GC))
+    master = config.changed("walking", com_feedback_gain=0.15, com_measured_from="commanded-pelvis")
+    scheme = LabWalkingScheme.for_run(PATTERN, master, ControllerChoice(ControllerKind.GC))
     model = leg_model()
     tick = 900
     planned = PATTERN.joint_angles_rad[tick]
@@ -84,6 +85,34 @@ def test_the_correction_is_kp_times_the_measured_com_error(config) -> None:
     for side in (0, 1):
         ankle = model.ft_sensor_placement(side).translation  # the ankle-roll frame
         assert ankle == pytest.approx(PATTERN.foot_position_m[tick, side], abs=1e-6)
+
+
+def test_the_2018_form_cancels_the_sway_and_keeps_the_legs_shape(config) -> None:
+    """The lab's 2018 form (the default): pelvis = pelvis measured + kp (c_desired -
+    c_measured), both with the stance sole flat. The whole robot swayed sideways on its stance
+    ankle (the ankle roll 20 mrad off, nothing else): at kp = 1 the sway cancels and the
+    pelvis stays where the plan's shape puts it (the legs' shape is the plan's but for the
+    ankle, so nearly the plan's pelvis); at kp = 0.9 a tenth of the measured CoM error is
+    added to the command, by hand."""
+    from hil.experiments.legs import anchor_feet, placed_configuration
+
+    tick = 1000  # the first single support, left stance
+    planned = PATTERN.joint_angles_rad[tick]
+    swayed = planned.copy()
+    swayed[5] += 0.02  # the left (stance) ankle roll
+    model = leg_model()
+    q = placed_configuration(model, swayed, int(anchor_feet(PATTERN)[tick]), PATTERN, tick)
+    pelvis, com = q[:3].copy(), model.centre_of_mass(q)
+    desired, plan_pelvis = PATTERN.com_position_m[tick], PATTERN.pelvis_position_m[tick]
+    assert abs(com[1] - desired[1]) > 0.01  # the sway moved the CoM by centimetres
+    for kp in (1.0, 0.9):
+        walking = config.changed("walking", com_feedback_gain=kp)
+        scheme = LabWalkingScheme.for_run(PATTERN, walking, ControllerChoice(ControllerKind.GC))
+        scheme.reference(tick * PATTERN.dt_s, planned, swayed)
+        expected = pelvis[:2] + kp * (desired[:2] - com[:2]) - plan_pelvis[:2]
+        assert scheme.correction_m == pytest.approx(expected, abs=1e-12)
+        if kp == 1.0:  # the sway is gone: what is left is the ankle's share of the shape
+            assert np.abs(scheme.correction_m).max() < 0.2 * abs(com[1] - desired[1])
 
 
 def test_the_loop_follows_and_logs_the_corrected_reference(config, tmp_path: Path) -> None:
