@@ -181,11 +181,18 @@ class _Pool:
                     target=_worker_main,
                     args=(theirs, self.plan_stopped, template, faults, overruns),
                     name=f"hil-run-worker-{number + 1}",
-                    daemon=True,  # never outlives the parent's interpreter
+                    # not daemonic: a run may start processes of its own (the LQR's designer,
+                    # the log writer), which a daemonic process may not; `end` (always run)
+                    # joins every worker, and one whose parent is gone leaves at its next
+                    # message (EOF)
+                    daemon=False,
                 )
                 process.start()
                 theirs.close()
                 self.workers.append(_Worker(process, mine))
+        except BaseException:
+            self.end()  # the workers started so far
+            raise
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)

@@ -92,3 +92,21 @@ def test_how_many_workers(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> No
         comparison_workers(attached, 2, 16)
     with pytest.raises(ConfigError, match=">= 1"):
         comparison_workers(session, 0, 16)
+
+
+def test_a_humanoid_lqr_run_designs_its_gains_in_a_worker(tmp_path: Path) -> None:
+    """A DYROS-JET gc+lqr run starts a process of its own (the LQR's designer, and the log
+    writer): in a worker it does so as alone (a daemonic worker could not: "daemonic processes
+    are not allowed to have children"), with one worker and with two."""
+    from hil.experiments import STAND
+
+    stand = dataclasses.replace(STAND, duration_s=0.3)
+    config = load_config(robot="dyros-jet")
+    session = Session(config, Setup.IN_PROCESS, out_root=tmp_path, quiet=True, plots=False)
+    lqr = ControllerChoice(ControllerKind.GC_LQR)
+    for workers in (1, 2):
+        out = tmp_path / str(workers)
+        outcome = run_plan(session, [(stand, lqr), (stand, GC)], out, workers=workers)
+        assert [e.result.termination for e in outcome.entries] == [Termination.COMPLETED] * 2, [
+            e.result.ending.text for e in outcome.entries
+        ]
