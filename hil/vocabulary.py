@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 from controller import COMPOSITION_READINGS, ControllerKind
+from controller.gravity import GcCompliance
 
 __all__ = [
     "ControllerChoice",
@@ -100,15 +101,18 @@ class EmulatorClock(enum.StrEnum):
 
 @dataclass(frozen=True)
 class ControllerChoice:
-    """A controller to run: which one, its DOB gain, and (optionally) its reading of (25).
+    """A controller to run: which one, its DOB gain, and (optionally) its reading of (25) and
+    the compliance its gravity compensator offsets.
 
     kdist counts only for the DOB controller (it is 0 for the others); reading None means the
-    configuration's `[controller] composition`.
+    configuration's `[controller] composition`, gc_compliance None its `gc_compliance` (the
+    comparisons run GC once more with the other reading, "gear": the paper's literal K^-1).
     """
 
     kind: ControllerKind
     kdist: float = 0.0
     reading: str | None = None
+    gc_compliance: GcCompliance | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "kind", ControllerKind(self.kind))
@@ -118,12 +122,19 @@ class ControllerChoice:
             raise ValueError(f"kdist must be finite and >= 0, got {self.kdist}")
         if self.reading is not None and self.reading not in COMPOSITION_READINGS:
             raise ValueError(f"reading must be one of {COMPOSITION_READINGS}, got {self.reading!r}")
+        if self.gc_compliance is not None:
+            if self.kind is ControllerKind.PID:
+                raise ValueError("pid has no gravity compensator: gc_compliance does not apply")
+            object.__setattr__(self, "gc_compliance", GcCompliance(self.gc_compliance))
 
     @property
     def label(self) -> str:
-        """'gc+lqr+dob (Kdist 1)', with ', literal (25)' when a reading is named."""
+        """'gc+lqr+dob (Kdist 1)', with ', literal (25)' when a reading is named and ', gear
+        (8)' when the compliance is."""
         label = f"{self.kind} (Kdist {self.kdist:g})" if self.kind.has_dob else str(self.kind)
-        return f"{label}, {self.reading} (25)" if self.reading else label
+        if self.reading:
+            label += f", {self.reading} (25)"
+        return f"{label}, {self.gc_compliance} (8)" if self.gc_compliance else label
 
     @property
     def dir_name(self) -> str:
@@ -131,10 +142,12 @@ class ControllerChoice:
         name = self.kind.value.replace("+", "-")
         if self.kind.has_dob:
             name += f"-k{self.kdist:g}"
-        return f"{name}-{self.reading}" if self.reading else name
+        if self.reading:
+            name += f"-{self.reading}"
+        return f"{name}-{self.gc_compliance}" if self.gc_compliance else name
 
     def with_reading(self, reading: str | None) -> ControllerChoice:
-        return ControllerChoice(self.kind, self.kdist, reading)
+        return ControllerChoice(self.kind, self.kdist, reading, self.gc_compliance)
 
 
 @dataclass(frozen=True)

@@ -99,7 +99,7 @@ def build_controller(
         discretisation=section.discretization,  # type: ignore[arg-type]
         link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]
         lqr_coupling=robot.lqr_coupling,  # type: ignore[arg-type]
-        gc_compliance_rad_per_nm=gc_compliance(config),
+        gc_compliance_rad_per_nm=gc_compliance(config, choice.gc_compliance),
         servo_cascade=servo_cascade(config),
         kdist_reference=section.kdist_reference,
         reference_feedforward=section.reference_feedforward,

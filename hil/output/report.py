@@ -66,13 +66,15 @@ def find(
     kdist: float | None = None,
     *,
     reading: str | None = None,
+    gc_compliance: str | None = None,
 ) -> RunEntry | None:
-    """The run of this experiment with this controller (and Kdist, and named reading)."""
+    """The run of this experiment with this controller (and Kdist, and named reading of (25)
+    and compliance of (8); None: the configuration's)."""
     for entry in entries:
         choice = entry.choice
         if entry.experiment != experiment or choice.kind is not kind:
             continue
-        if choice.reading != reading:
+        if choice.reading != reading or choice.gc_compliance != gc_compliance:
             continue
         if kdist is None or math.isclose(choice.kdist, kdist):
             return entry

@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from controller.gravity import GcCompliance
 from hil.config import ConfigError, robot_of
 from hil.experiments import (
     CONTACT,
@@ -85,21 +86,28 @@ class ComparisonOutcome:
     torque_not_off: tuple[str, ...] = ()
 
 
-def humanoid_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
-    """DYROS-JET standing and pushed, with each of the four controllers."""
-    choices = (
+def humanoid_choices(kdist: float) -> tuple[ControllerChoice, ...]:
+    """The four controllers, and GC once more with the other reading of (8): the paper's
+    literal K^-1 ("gear") beside the configuration's (the whole joint's, by default)."""
+    return (
         ControllerChoice(ControllerKind.PID),
         ControllerChoice(ControllerKind.GC),
+        ControllerChoice(ControllerKind.GC, gc_compliance=GcCompliance.GEAR),
         ControllerChoice(ControllerKind.GC_LQR),
         ControllerChoice(ControllerKind.GC_LQR_DOB, kdist),
     )
+
+
+def humanoid_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
+    """DYROS-JET standing and pushed, with each of `humanoid_choices`."""
+    choices = humanoid_choices(kdist)
     return [(experiment, choice) for experiment in (STAND, PUSH) for choice in choices]
 
 
 def walking_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
-    """DYROS-JET walking slowly, dynamically and onto an object, with each of the four
-    controllers (the same as `humanoid_plan`'s)."""
-    choices = [choice for _, choice in humanoid_plan(kdist)[:4]]
+    """DYROS-JET walking slowly, dynamically and onto an object, with each of
+    `humanoid_choices`."""
+    choices = humanoid_choices(kdist)
     return [
         (experiment, choice)
         for experiment in (WALK_SLOW, WALK_DYNAMIC, STEP_ON_OBJECT)

@@ -288,6 +288,7 @@ class Session:
             "controller_label": choice.label,
             "kdist": choice.kdist,
             "reading": choice.reading,
+            "gc_compliance": str(choice.gc_compliance or self.config.controller.gc_compliance),
             "setup": self.description,
             "clock": "lockstep" if clock.deterministic else "wall",
             "seed": self.seed if self.seed is not None else self.config.emulator.seed,

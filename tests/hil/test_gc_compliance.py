@@ -162,3 +162,35 @@ def test_joint_compliance_leaves_a_fraction_of_the_gears_error(jet, support) -> 
     # C leaves a fraction of the gear's error: (1 - x) / x = 0.14 by the physics
     assert np.linalg.norm(e_joint[rows]) < 0.25 * np.linalg.norm(e_gear[rows])
     assert with_joint.plant.pelvis_tilt_rad < 0.25 * with_gear.plant.pelvis_tilt_rad
+
+
+def test_a_comparison_runs_gc_with_each_reading_and_builds_each() -> None:
+    """The humanoid comparisons run GC with the configuration's reading and once more with the
+    paper's K^-1: the choice carries it into the controller's (8) (1/K per joint), its label,
+    its run directory and the report's lookup, which tells the two GC runs apart."""
+    from hil.loop.controller_factory import build_controller
+    from hil.output.report import RunEntry, find
+    from hil.session.comparison import humanoid_choices
+    from hil.vocabulary import ControllerChoice, ControllerKind
+
+    choices = humanoid_choices(0.2)
+    gcs = [c for c in choices if c.kind is ControllerKind.GC]
+    assert [c.gc_compliance for c in gcs] == [None, GcCompliance.GEAR]
+    gear = gcs[1]
+    assert (gear.label, gear.dir_name) == ("gc, gear (8)", "gc-gear")
+    with pytest.raises(ValueError, match="pid has no gravity compensator"):
+        ControllerChoice(ControllerKind.PID, gc_compliance=GcCompliance.GEAR)
+    testbed = load_config()  # one joint: 1/K + 1/(Kpp kv) = 0.00177389, 1/K = 0.0005
+    offsets = {}
+    for choice in gcs:
+        controller = build_controller(testbed, choice, 0.005)
+        theta = np.array([0.4])  # a posture where gravity loads the joint
+        controller.reset(theta, theta, theta, theta)
+        offsets[choice.gc_compliance] = float(controller.step(theta, theta, theta)[0] - 0.4)
+    assert abs(offsets[None]) > 1e-4
+    assert offsets[None] / offsets[GcCompliance.GEAR] == pytest.approx(
+        0.00177389 / 0.0005, rel=1e-5
+    )
+    entries = [RunEntry("stand", c, None) for c in gcs]  # type: ignore[arg-type]
+    assert find(entries, "stand", ControllerKind.GC) is entries[0]
+    assert find(entries, "stand", ControllerKind.GC, gc_compliance="gear") is entries[1]
