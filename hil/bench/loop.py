@@ -1,8 +1,8 @@
 """`hil bench loop`: controller compute per tick, the lock-step real-time factor, and the 200 Hz
 wall-clock loop's timing.
 
-- controller compute per tick (`step` + `notify_applied`) of all four controllers for 1 and
-  12 joints, interleaved tick by tick (on the humanoid: its 12 legs with the pinocchio gravity
+- controller compute per tick (hil/bench/compute.py: `step` + `notify_applied`) of all four
+  controllers for 1 and 12 joints, interleaved tick by tick (on the humanoid: its 12 legs with the pinocchio gravity
   compensator, plus the LQR gain's rescheduling, Sm of (19) and the design, which runs off the
   200 Hz path);
 - the real-time factor of a lock-step run of the impact experiment (the humanoid: stand) with
@@ -27,19 +27,19 @@ from typing import Any
 
 import numpy as np
 
-from controller import CONTROLLER_NAMES, ControllerKind, JointController
+from controller import CONTROLLER_NAMES, ControllerKind
 from drivers.tick_budget import tick_budget
 from drivers.timing import DurationStats as Distribution
 from hil.bench.bus import JOINT_COUNTS
 from hil.bench.common import (
     BenchError,
     StartFailed,
-    config_with_joints,
     machine,
     termination_text,
     with_bench_reply_timeout,
     with_retries,
 )
+from hil.bench.compute import bench_controllers
 from hil.bench.machine import bench_cpu_stalls, bench_idle_sleeper, stall_counts_longer_than
 from hil.bench.reschedule import bench_gain_schedule, gain_schedule_lines
 from hil.bench.speed import bench_speed, speed_text
@@ -51,8 +51,6 @@ from hil.loop import (
     RunRequest,
     Tick,
     WallClock,
-    build_controller,
-    robot_model,
     run_experiment,
 )
 from hil.output.records import RunResult
@@ -62,92 +60,8 @@ from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
 from hil.wiring.hardware import bus_config
 
 DEFAULT_LOOP_TICKS = 1000  # 5 s at 200 Hz: the whole impact experiment
-CONTROLLER_WARMUP_TICKS = 20
 LOOP_CONTROLLER = ControllerKind.GC_LQR_DOB
 MIN_RUN_TICKS = 3  # a run that made fewer ticks did not get going
-
-
-def _controller_inputs(
-    n_joints: int, ticks: int, period_s: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Plausible motor / link / reference angles [rad] (ticks x n): a slow swing, a small
-    deflection. The controllers' cost does not depend on the values; they just stay finite."""
-    time_s = np.arange(ticks)[:, None] * period_s
-    phase = np.arange(n_joints)[None, :] * 0.3
-    reference = 0.2 * np.sin(2 * np.pi * 0.5 * time_s + phase)
-    link = reference + 0.01 * np.sin(2 * np.pi * 3.0 * time_s + phase)
-    motor = link + 0.005 * np.cos(2 * np.pi * 3.0 * time_s + phase)
-    return motor, link, reference
-
-
-def bench_controllers(
-    base: Config,
-    ticks: int,
-    *,
-    joint_counts: Sequence[int] = JOINT_COUNTS,
-    names: Sequence[str] = CONTROLLER_NAMES,
-    warmup: int = CONTROLLER_WARMUP_TICKS,
-) -> list[dict[str, Any]]:
-    """Time step + notify_applied of every (n joints, controller), interleaved tick by tick.
-
-    Each tick runs every case once, the order rotated by one each tick, so a burst of machine
-    load falls on all of them alike. build_s is make_controller's time (LQR design included).
-    """
-    period_s = base.loop.period_s
-    kdist = base.controller.kdist
-    humanoid = robot_of(base) == "dyros-jet"
-    if humanoid:  # the robot's own 12 legs, about its standing posture
-        joint_counts = (len(base.joints),)
-        robot = robot_model(base)
-        posture = np.asarray(STAND.reference(0.0))
-    cases: list[tuple[int, str]] = [(n, name) for n in joint_counts for name in names]
-    controllers: list[JointController] = []
-    build_s: list[float] = []
-    inputs: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-    total = warmup + ticks
-    for n_joints, name in cases:
-        started = time.perf_counter()
-        choice = ControllerChoice(name, kdist)
-        if humanoid:
-            contact = robot.lqr_contacts([STAND.support(0.0)])[0]
-            controller = build_controller(base, choice, period_s, robot, posture, contact)
-        else:
-            controller = build_controller(config_with_joints(base, n_joints), choice, period_s)
-        build_s.append(time.perf_counter() - started)
-        if n_joints not in inputs:
-            inputs[n_joints] = _controller_inputs(n_joints, total, period_s)
-            if humanoid:
-                inputs[n_joints] = tuple(a + posture for a in inputs[n_joints])  # type: ignore[assignment]
-        motor, link, reference = inputs[n_joints]
-        controller.reset(motor[0], link[0], reference[0])
-        controllers.append(controller)
-    durations_s = np.empty((len(cases), total))
-    order = list(range(len(cases)))
-    clock = time.perf_counter
-    for k in range(total):
-        shift = k % len(order)
-        for index in order[shift:] + order[:shift]:
-            controller = controllers[index]
-            motor, link, reference = inputs[cases[index][0]]
-            started = clock()
-            goal = controller.step(motor[k], link[k], reference[k])
-            controller.notify_applied(goal)
-            durations_s[index, k] = clock() - started
-    results = []
-    for index, (n_joints, name) in enumerate(cases):
-        stats = Distribution.of(durations_s[index, warmup:])
-        results.append(
-            {
-                "n_joints": n_joints,
-                "controller": name,
-                "ticks": stats.count,
-                "median_s": stats.median_s,
-                "p99_s": stats.p99_s,
-                "max_s": stats.max_s,
-                "build_s": build_s[index],
-            }
-        )
-    return results
 
 
 class RecordingClock(LoopClock):
