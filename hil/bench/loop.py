@@ -2,9 +2,9 @@
 wall-clock loop's timing.
 
 - controller compute per tick (hil/bench/compute.py: `step` + `notify_applied`) of all four
-  controllers for 1 and 12 joints, interleaved tick by tick (on the humanoid: its 12 legs with the pinocchio gravity
-  compensator, plus the LQR gain's rescheduling, Sm of (19) and the design, which runs off the
-  200 Hz path);
+  controllers for 1 and 12 joints, interleaved tick by tick (on the humanoid: its 12 legs with
+  the pinocchio gravity compensator, plus the LQR gain's rescheduling, Sm of (19) and the
+  design, which runs off the 200 Hz path);
 - the real-time factor of a lock-step run of the impact experiment (the humanoid: stand) with
   gc+lqr+dob through the emulated buses (`hil.loop.run_experiment`, the loop `hil run` uses):
   simulated s / wall s;

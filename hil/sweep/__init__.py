@@ -21,6 +21,7 @@ from hil.sweep.engine import (
     import_ray,
     run_sweep,
 )
+from hil.sweep.plan import plan
 from hil.sweep.spec import (
     ModelFollows,
     Sampling,
@@ -31,7 +32,6 @@ from hil.sweep.spec import (
     Task,
     load_spec,
     parse_spec,
-    plan,
     shipped_specs,
 )
 from hil.sweep.table import ResultsTable, TableMismatch

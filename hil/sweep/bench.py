@@ -26,8 +26,9 @@ from typing import Any
 
 from hil.config import Config
 from hil.sweep.engine import import_ray, start_ray
+from hil.sweep.plan import plan
 from hil.sweep.processes import descendants, shutdown_ray_started_here
-from hil.sweep.spec import SweepSpec, Task, parse_spec, plan
+from hil.sweep.spec import SweepSpec, Task, parse_spec
 from hil.sweep.task import FAILED, run_task
 
 DEFAULT_RUNS = 8

@@ -3,7 +3,7 @@
 `checked_plan(spec, base)` is what `run_sweep` runs:
 1. the run count from the spec alone (grid sizes or the Monte Carlo count, times experiments
    and controllers), refused above MAX_SWEEP_RUNS before a single point is listed;
-2. the plan (hil/sweep/spec.py);
+2. the plan (hil/sweep/plan.py);
 3. every point's configuration built as a worker builds it (`config_at`) and checked like a
    configuration file, the emulator's figures and the devices' included (`check_devices`),
    each controller's Kdist against [safety] max_kdist, the run's duration: a value the
@@ -17,8 +17,9 @@ import math
 
 from hil.config import Config, ConfigError, config_from_record
 from hil.loop import duration_problem
+from hil.sweep.plan import config_at, plan, resolved
 from hil.sweep.ranges import SpecError
-from hil.sweep.spec import Sampling, SweepSpec, Task, config_at, parse_controller, plan, resolved
+from hil.sweep.spec import Sampling, SweepSpec, Task, parse_controller
 from hil.wiring import check_devices
 
 # A sweep plans at most this many runs: at ~15 runs per minute and CPU (`hil bench sweep`:

@@ -1,7 +1,7 @@
 """Running a sweep on Ray, resumably, and writing what it found.
 
 `run_sweep(spec, base, out_dir, ...)`:
-1. plans every run (hil/sweep/spec.py) and reads results.csv in `out_dir`: the runs whose ids
+1. plans every run (hil/sweep/plan.py) and reads results.csv in `out_dir`: the runs whose ids
    it holds are done (a failed run too: it is a result) and are not run again;
 2. runs the rest as Ray tasks (`ray.init()` on this machine with `workers` CPUs, or joining the
    cluster at `address`), at most two per CPU in flight; each finished run's row is appended to
@@ -32,9 +32,10 @@ from hil.config import Config
 from hil.output.strict_json import dumps
 from hil.sweep.checks import checked_plan
 from hil.sweep.maps import write_maps
+from hil.sweep.plan import resolved
 from hil.sweep.processes import adopt_orphans, descendants, shutdown_ray_started_here
 from hil.sweep.relations import PointRelation, RelationFraction, fractions, point_relations
-from hil.sweep.spec import Sampling, SweepSpec, Task, resolved
+from hil.sweep.spec import Sampling, SweepSpec, Task
 from hil.sweep.table import ResultsTable, header
 from hil.sweep.task import FAILED, run_task, task_row
 from hil.vocabulary import Termination

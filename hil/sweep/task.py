@@ -19,7 +19,8 @@ from hil.config import config_from_record
 from hil.experiments import get_experiment
 from hil.output.strict_json import plain
 from hil.session import Session, Setup
-from hil.sweep.spec import SweepSetup, Task, config_at
+from hil.sweep.plan import config_at
+from hil.sweep.spec import SweepSetup, Task
 
 FAILED = "failed"  # the row's `ending` when the run raised instead of ending
 SETUPS = {SweepSetup.IN_PROCESS: Setup.IN_PROCESS, SweepSetup.EMBEDDED: Setup.EMBEDDED}

@@ -17,8 +17,9 @@ from hil.sweep import (
     plan,
     shipped_specs,
 )
+from hil.sweep.plan import config_at, resolved
 from hil.sweep.relations import fractions, point_relations
-from hil.sweep.spec import config_at, parse_controller, resolved
+from hil.sweep.spec import parse_controller
 from hil.sweep.table import ResultsTable, header
 from hil.vocabulary import ControllerKind
 from hil.wiring.emulation import plant_servo_noise
