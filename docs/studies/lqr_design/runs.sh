@@ -9,8 +9,10 @@ for design in ours paper lab closed-chain; do
     for experiment in stand push walk-slow walk-dynamic step-on-object; do
       duration=""
       [ "$experiment" = stand ] && duration="--duration 10"
+      kdist=""  # (--kdist is refused for a controller without a DOB)
+      [ "$controller" = gc+lqr+dob ] && kdist="--kdist 0.2"
       hil run "$experiment" --config "$design.toml" --emulate --controller "$controller" \
-        --kdist 0.2 $duration --no-plots --no-mcap --json --out "$OUT/$design" > /dev/null
+        $kdist $duration --no-plots --no-mcap --json --out "$OUT/$design" > /dev/null
     done
   done
 done
