@@ -52,11 +52,7 @@ from drivers.canbus.sensor_nodes import (
     SensorDevice,
     state_name,
 )
-from drivers.canbus.units import (
-    force_n_from_counts,
-    link_angle_rad_from_counts,
-    wrench_from_counts,
-)
+from drivers.canbus.units import force_n_from_counts, link_angle_rad_from_counts, wrench_from_counts
 
 __all__ = ["CanDeviceError", "LinkEncoderReader"]
 
