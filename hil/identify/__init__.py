@@ -13,8 +13,10 @@ What is fitted (Kim et al., ICRA 2018, Sec. II; the actuator as the H54 firmware
 u is the goal held over each loop period, delta_0 the deflection the encoders read with no
 torque in the gear (their zero offsets). Equations and discretisation: `models`.
 
-The estimator (`estimation`), three least-squares fits, each on the part of the data that
-carries its parameters, each with the samples from the hold-out point on kept out:
+The estimator (`estimation`; each fit in its module: `gear_fit`, `servo_fit`, `cascade_fit`,
+`current_limit`, over `least_squares` and `options`), three least-squares fits, each on the part
+of the data that carries its parameters, each with the samples from the hold-out point on kept
+out:
 1. K, D, delta_0: output error of theta_j simulated by (1), (3) from the measured motor motion
    (exact discretisation, motor angle between samples the cubic through the measured angles
    and velocities). The motor's own model does not enter, so its errors (friction) cannot
@@ -82,10 +84,10 @@ from hil.identify.result import (
 # The fits (scipy.optimize, .signal, .stats) and the figure (matplotlib) load when first asked
 # for: the excitation and the records are all an experiment needs to run (hil run identify).
 _LAZY = {
-    "IdentificationOptions": "estimation",
-    "fit_cascade": "estimation",
-    "fit_first_order_servo": "estimation",
-    "fit_gear": "estimation",
+    "IdentificationOptions": "options",
+    "fit_cascade": "cascade_fit",
+    "fit_first_order_servo": "servo_fit",
+    "fit_gear": "gear_fit",
     "identify": "estimation",
     "GearParams": "models",
     "MotorParams": "models",

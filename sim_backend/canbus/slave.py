@@ -37,48 +37,52 @@ Faults (`SensorFault`, mutable, looked at on every call):
 - "noisy": zero-mean Gaussian noise of `noise_counts_rms` (in the device's raw units) is added
   before rounding, from a numpy Generator seeded by `seed` (deterministic).
 
-Nominal noise (`process_noise_rms`, raw units, 0 by default): the sensor's own measurement noise,
-zero-mean Gaussian added to every sample before rounding, from the same seeded Generator (a
-"noisy" fault adds its noise on top). Same seed, same calls: the same values.
+The process value a node serves (nominal noise, faults, rounding) is in `process_value.py`,
+the TPDO (mapping, SYNC and event-timer frames, its communication parameters) in `tpdo.py`.
 """
 
 from __future__ import annotations
 
 import abc
 import math
-import struct
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import can
 import numpy as np
-from canopen.objectdictionary import datatypes
 
 from sim_backend.canbus.cia301 import (
     COMMUNICATION_AREA,
     HEARTBEAT_COB_ID_BASE,
     NMT_COB_ID,
-    PDO_COB_ID_EXTENDED,
-    PDO_COB_ID_INVALID,
     SDO_REQUEST_COB_ID_BASE,
     SDO_RESPONSE_COB_ID_BASE,
-    STANDARD_ID_MASK,
     SYNC_COB_ID,
-    TRANSMISSION_ACYCLIC_SYNC,
     TRANSMISSION_EVENT_MANUFACTURER,
-    TRANSMISSION_EVENT_PROFILE,
-    TRANSMISSION_SYNC_MAX,
     NmtCommand,
     NmtState,
-    SdoAbortCode,
 )
 from sim_backend.canbus.object_store import ObjectStore
+from sim_backend.canbus.process_value import (
+    FAULT_MODES,
+    ProcessValue,
+    SensorFault,
+    SensorFaultCounts,
+    wrap_int32,
+)
 from sim_backend.canbus.sdo_server import SdoServer
+from sim_backend.canbus.tpdo import TPDO_COMMUNICATION, TpdoProducer, transmission_type_refusal
 from sim_backend.normal_stream import NormalStream
 
-FAULT_MODES = ("ok", "dead", "stale", "noisy")
+__all__ = [
+    "DEFAULT_BOOTUP_DELAY_S",
+    "FAULT_MODES",
+    "CanopenSlave",
+    "SensorFault",
+    "SensorFaultCounts",
+    "wrap_int32",
+]
 
 # How long an emulated node initialises after an NMT reset (or when its power returns) before
 # it sends its boot-up frame. CiA 301 sets no figure; a device restarts its communication stack
@@ -90,58 +94,7 @@ FAULT_MODES = ("ok", "dead", "stale", "noisy")
 # 5 ms. 10 ms leaves a descheduled master room to start waiting.
 DEFAULT_BOOTUP_DELAY_S = 0.010
 
-_TPDO_COMMUNICATION = 0x1800
-_TPDO_MAPPING = 0x1A00
 _HEARTBEAT_TIME = 0x1017
-
-# PDO-mappable integer types and their struct codes (little endian, CiA 301 byte order).
-_STRUCT_CODES = {
-    datatypes.INTEGER8: "b",
-    datatypes.INTEGER16: "h",
-    datatypes.INTEGER32: "i",
-    datatypes.UNSIGNED8: "B",
-    datatypes.UNSIGNED16: "H",
-    datatypes.UNSIGNED32: "I",
-}
-
-
-@dataclass
-class SensorFault:
-    """An injectable fault of an emulated sensor node (mutable: the test or plant flips it).
-
-    mode: "ok", "dead" (no frames at all), "stale" (process value frozen), "noisy" (Gaussian
-    noise of `noise_counts_rms` raw units, e.g. encoder counts or millinewtons).
-    """
-
-    mode: str = "ok"
-    noise_counts_rms: float = 0.0
-
-    def check(self) -> None:
-        if self.mode not in FAULT_MODES:
-            raise ValueError(f"fault mode must be one of {FAULT_MODES}, got {self.mode!r}")
-        if not (math.isfinite(self.noise_counts_rms) and self.noise_counts_rms >= 0.0):
-            raise ValueError(
-                f"noise_counts_rms must be a finite value >= 0, got {self.noise_counts_rms!r}"
-            )
-
-
-@dataclass
-class SensorFaultCounts:
-    """How often the node's fault actually acted (history, never reset by the node).
-
-    frames_ignored_while_dead: frames on the bus the node did not hear because it had no power.
-    stale_samples: process values served frozen (SYNC answers and SDO reads) while "stale".
-    noisy_samples: process values that got noise added while "noisy".
-    """
-
-    frames_ignored_while_dead: int = 0
-    stale_samples: int = 0
-    noisy_samples: int = 0
-
-
-def wrap_int32(value: int) -> int:
-    """Two's-complement wrap of a counter to the INTEGER32 range, like a 32-bit register."""
-    return ((value + 0x8000_0000) & 0xFFFF_FFFF) - 0x8000_0000
 
 
 def _to_microseconds(now_s: float) -> int:
@@ -149,7 +102,7 @@ def _to_microseconds(now_s: float) -> int:
     return round(now_s * 1_000_000)
 
 
-class CanopenSlave(abc.ABC):
+class CanopenSlave(ProcessValue, TpdoProducer, abc.ABC):
     """Base of the emulated nodes; a subclass supplies the process value (`_ideal_raw`).
 
     A subclass sets its own attributes before calling `super().__init__`, which powers the
@@ -177,7 +130,7 @@ class CanopenSlave(abc.ABC):
             raise ValueError(
                 f"heartbeat_ms must be 0..65535 (0x1017 is UNSIGNED16), got {heartbeat_ms}"
             )
-        if _transmission_type_refusal(tpdo_transmission_type) is not None:
+        if transmission_type_refusal(tpdo_transmission_type) is not None:
             raise ValueError(
                 "tpdo_transmission_type must be 0..240, 254 or 255 (CiA 301 0x1800:02), "
                 f"got {tpdo_transmission_type}"
@@ -189,10 +142,10 @@ class CanopenSlave(abc.ABC):
         self.fault_counts = SensorFaultCounts()
         self._store = ObjectStore(eds_file, node_id)
         self._store.set_default(_HEARTBEAT_TIME, 0, heartbeat_ms)
-        self._store.set_default(_TPDO_COMMUNICATION, 2, tpdo_transmission_type)
+        self._store.set_default(TPDO_COMMUNICATION, 2, tpdo_transmission_type)
         self._store.set_default(0x1018, 4, serial_number)
-        self._store.validate_writes(_TPDO_COMMUNICATION, 1, self._validate_tpdo_cob_id)
-        self._store.validate_writes(_TPDO_COMMUNICATION, 2, _transmission_type_refusal)
+        self._store.validate_writes(TPDO_COMMUNICATION, 1, self._validate_tpdo_cob_id)
+        self._store.validate_writes(TPDO_COMMUNICATION, 2, transmission_type_refusal)
         self._store.on_read(*process_value_object, self._sample_raw)
         self._store.after_write = self._after_write
         self._sdo = SdoServer(self._store)
@@ -311,37 +264,11 @@ class CanopenSlave(abc.ABC):
     def _ideal_raw(self) -> float:
         """Process value in the device's raw units before rounding, without faults."""
 
-    def _reset_application(self) -> None:  # noqa: B027 - an optional hook
+    def _reset_application(self) -> None:  # an optional hook
         """Device-specific state back to power-on (reset node / power cycle)."""
 
-    def _on_object_written(self, index: int, subindex: int, value: Any) -> None:  # noqa: B027
+    def _on_object_written(self, index: int, subindex: int, value: Any) -> None:
         """A device object was written by SDO (after validation and storage); optional hook."""
-
-    # --- process value ---------------------------------------------------------------------
-    def _set_process_noise(self, rms_raw: float) -> None:
-        """The sensor's nominal noise, rms in raw units (for subclasses that scale a figure)."""
-        if not (math.isfinite(rms_raw) and rms_raw >= 0.0):
-            raise ValueError(f"the sensor noise must be a finite rms >= 0, got {rms_raw!r}")
-        self._process_noise_rms = float(rms_raw)
-
-    def _sample_raw(self) -> int:
-        """The process value now, in raw units, with the fault applied (the read hook)."""
-        if self._frozen_raw is not None:
-            self.fault_counts.stale_samples += 1
-            return self._frozen_raw
-        exact = self._ideal_raw()
-        if not math.isfinite(exact):
-            raise ValueError(
-                f"node {self.node_id}: the plant's source gave a non-finite value ({exact!r})"
-            )
-        if self._process_noise_rms > 0.0:
-            exact += self._normals.next() * self._process_noise_rms
-        if self.fault.mode == "noisy" and self.fault.noise_counts_rms > 0.0:
-            exact += self._normals.next() * self.fault.noise_counts_rms
-            self.fault_counts.noisy_samples += 1
-        raw = wrap_int32(math.floor(exact + 0.5))  # round half up
-        self._last_sample_raw = raw
-        return raw
 
     # --- NMT, power, faults ----------------------------------------------------------------
     def _prologue(self, now_s: float) -> list[can.Message]:
@@ -433,7 +360,7 @@ class CanopenSlave(abc.ABC):
         return self._next_event_us
 
     def _event_period_us(self) -> int:
-        return int(self._store.stored_value(_TPDO_COMMUNICATION, 5)) * 1000
+        return int(self._store.stored_value(TPDO_COMMUNICATION, 5)) * 1000
 
     def _restart_heartbeat(self) -> None:
         period = self._heartbeat_period_us()
@@ -451,78 +378,10 @@ class CanopenSlave(abc.ABC):
             due_us = self._now_us + period_us
         return due_us
 
-    # --- TPDO ------------------------------------------------------------------------------
-    def _static_tpdo_mapping(self) -> tuple[list[tuple[int, int]], struct.Struct]:
-        count = int(self._store.stored_value(_TPDO_MAPPING, 0))
-        objects: list[tuple[int, int]] = []
-        codes = "<"
-        for entry in range(1, count + 1):
-            mapped = int(self._store.stored_value(_TPDO_MAPPING, entry))
-            index, subindex, bits = mapped >> 16, (mapped >> 8) & 0xFF, mapped & 0xFF
-            variable = self._store.variable(index, subindex)
-            code = _STRUCT_CODES.get(variable.data_type)
-            if code is None or not variable.pdo_mappable or len(variable) != bits:
-                raise ValueError(
-                    f"EDS maps 0x{mapped:08X} into TPDO1, which is not a PDO-mappable "
-                    f"{bits}-bit integer object"
-                )
-            objects.append((index, subindex))
-            codes += code
-        tpdo_struct = struct.Struct(codes)
-        if tpdo_struct.size > 8:
-            raise ValueError(f"TPDO1 mapping of the EDS needs {tpdo_struct.size} bytes (max 8)")
-        return objects, tpdo_struct
-
-    def _tpdo_values(self) -> tuple[Any, ...]:
-        readers = self._tpdo_readers
-        if readers is None:  # (the read hooks are all registered once the node is built)
-            readers = self._tpdo_readers = [self._store.reader(*key) for key in self._tpdo_objects]
-        if len(readers) == 1:
-            return (readers[0](),)
-        return tuple([read() for read in readers])
-
-    def _tpdo_frame(self, values: tuple[Any, ...]) -> can.Message:
-        self._last_transmitted = values
-        return self._frame(self._tpdo_cob_id, self._tpdo_struct.pack(*values))
-
-    def _on_sync(self) -> list[can.Message]:
-        if not self._tpdo_enabled:
-            return []
-        transmission_type = self._transmission_type
-        if transmission_type == 1:  # every SYNC (the count stays 0): the usual, kept short
-            values = self._tpdo_values()
-            self._last_transmitted = values
-            return [self._frame(self._tpdo_cob_id, self._tpdo_struct.pack(*values))]
-        if transmission_type == TRANSMISSION_ACYCLIC_SYNC:
-            values = self._tpdo_values()
-            return [] if values == self._last_transmitted else [self._tpdo_frame(values)]
-        if transmission_type <= TRANSMISSION_SYNC_MAX:
-            self._sync_count += 1
-            if self._sync_count < transmission_type:
-                return []
-            self._sync_count = 0
-            return [self._tpdo_frame(self._tpdo_values())]
-        return []  # event-driven types ignore SYNC
-
-    def _refresh_tpdo_cache(self) -> None:
-        cob_id = int(self._store.stored_value(_TPDO_COMMUNICATION, 1))
-        self._tpdo_cob_id = cob_id & STANDARD_ID_MASK
-        self._tpdo_enabled = not cob_id & PDO_COB_ID_INVALID
-        self._transmission_type = int(self._store.stored_value(_TPDO_COMMUNICATION, 2))
-
-    def _validate_tpdo_cob_id(self, value: int) -> SdoAbortCode | None:
-        if value & PDO_COB_ID_EXTENDED or not 0x001 <= value & STANDARD_ID_MASK <= 0x7FF:
-            return SdoAbortCode.VALUE_RANGE_EXCEEDED  # only 11-bit identifiers
-        old = int(self._store.stored_value(_TPDO_COMMUNICATION, 1))
-        both_valid = not (old | value) & PDO_COB_ID_INVALID
-        if both_valid and (old & STANDARD_ID_MASK) != (value & STANDARD_ID_MASK):
-            return SdoAbortCode.VALUE_RANGE_EXCEEDED  # CiA 301: set bit 31 before changing it
-        return None
-
     def _after_write(self, index: int, subindex: int, value: Any) -> None:
         if index == _HEARTBEAT_TIME:
             self._restart_heartbeat()
-        elif index == _TPDO_COMMUNICATION:
+        elif index == TPDO_COMMUNICATION:
             self._refresh_tpdo_cache()
             if subindex == 2:
                 self._sync_count = 0
@@ -535,11 +394,3 @@ class CanopenSlave(abc.ABC):
         # positional: timestamp, arbitration_id, is_extended_id, is_remote_frame,
         # is_error_frame, channel, dlc, data (keywords cost more than the frame)
         return can.Message(self._now_us * 1e-6, cob_id, False, False, False, None, None, data)
-
-
-def _transmission_type_refusal(value: int) -> SdoAbortCode | None:
-    supported = value <= TRANSMISSION_SYNC_MAX or value in (
-        TRANSMISSION_EVENT_MANUFACTURER,
-        TRANSMISSION_EVENT_PROFILE,
-    )
-    return None if supported and value >= 0 else SdoAbortCode.VALUE_RANGE_EXCEEDED
