@@ -108,6 +108,10 @@ class ControllerSection(Section):
     paper: the ground reaction the plan needs, m (g - a_com), split at the plan's ZMP;
     controller/planned_motion.py, controller/humanoid/gravity.py). Without a plan (standing,
     the testbed) both are the paper's.
+    dob_expects_gravity_lag: the DOB's nominal servo holds (8)'s load with the servo cascade's
+    static stiffness Kpp kv (ours; [model] servo_model = "cascade" only): the paper's nominal
+    (4) has no static lag, so on a servo with one the DOB reads the compensated weight's lag
+    as a disturbance and yields to it (controller/controllers.py, docs/walking.md).
     """
 
     name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
@@ -126,6 +130,7 @@ class ControllerSection(Section):
     kdist_reference: Literal["per-tick", "paper-yield"] = "per-tick"  # what Kdist yields against
     reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments
     servo_feedforward: bool = False  # with a plan: the goal leads by the servo's lag, v / Kp
+    dob_expects_gravity_lag: bool = False  # the DOB's nominal servo lags under ug's load
     link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")

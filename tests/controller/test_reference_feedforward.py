@@ -6,7 +6,6 @@ goals differ by more: its estimate compares the motor with the goal sent, which 
 from __future__ import annotations
 
 import numpy as np
-
 import pytest
 
 from controller import ControllerParams, NoGravity, PlannedMotion, make_controller
