@@ -55,7 +55,11 @@ class WalkingParams:
     support begins and lands swing_guard_s before it ends (0: the swing fills the single
     support; the lab's code: t_rest_temp = 0.1 s, psh117/dyros_jet walking_controller.cpp
     `getFootTrajectory`, so that a foot that arrives late still lands before the ZMP moves
-    onto it)."""
+    onto it); preview_height_m: the cart-table's zc in the preview controller alone (None:
+    com_height_m, the CoM's height above the ground the ZMP lies on; the lab's code takes
+    the CoM's height in its support foot's frame, the ankle: walking_controller.cpp,
+    `updateInitialState`, zc_ = com_support_init_(2)), the planned CoM staying at
+    com_height_m."""
 
     dt_s: float = 0.005
     com_height_m: float = 0.8
@@ -68,6 +72,7 @@ class WalkingParams:
     swing_height_m: float = 0.05
     ankle_height_m: float = SOLE_BELOW_ANKLE_M
     swing_guard_s: float = 0.0
+    preview_height_m: float | None = None
     pelvis_offset_from_com_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     com_tolerance_m: float = 1e-7
     com_max_iterations: int = 50
@@ -89,7 +94,9 @@ class WalkingParams:
         object.__setattr__(self, "pelvis_offset_from_com_m", offset)
 
     def cart_table(self) -> CartTableParams:
-        return CartTableParams(self.com_height_m, self.gravity_mps2, self.dt_s)
+        """The preview controller's cart-table (zc: preview_height_m, else com_height_m)."""
+        height = self.com_height_m if self.preview_height_m is None else self.preview_height_m
+        return CartTableParams(height, self.gravity_mps2, self.dt_s)
 
 
 @dataclass(frozen=True)

@@ -109,6 +109,8 @@ class WalkingExperiment(Experiment):
     zmp_inward_offset_m: float = LAB_ZMP_INWARD_OFFSET_M
     zmp_transition: str = "lab-split"
     swing_guard_s: float = 0.0  # controller.walking.WalkingParams; LAB_SWING_GUARD_S: the lab's
+    # the preview's zc: the CoM above the ground (False) or, as the lab's code, above the ankle
+    preview_height_above_ankle: bool = False
 
     # --- the plan and its pattern ----------------------------------------------------------
     @functools.cached_property
@@ -150,7 +152,10 @@ class WalkingExperiment(Experiment):
             ZmpReferenceParams,
             ZmpTransition,
         )
-        from controller.walking.dyros_jet_figures import SOLE_CENTRE_AHEAD_OF_ANKLE_M
+        from controller.walking.dyros_jet_figures import (
+            SOLE_BELOW_ANKLE_M,
+            SOLE_CENTRE_AHEAD_OF_ANKLE_M,
+        )
 
         model = leg_model()
         q = model.standing_configuration(np.asarray(WALKING_READY_LEG_ANGLES_RAD), side=0)
@@ -168,6 +173,9 @@ class WalkingExperiment(Experiment):
                 lab_move_s=LAB_ZMP_MOVE_S,
             ),
             swing_guard_s=self.swing_guard_s,
+            preview_height_m=(
+                com_height - SOLE_BELOW_ANKLE_M if self.preview_height_above_ankle else None
+            ),
         )
         com = PinocchioCenterOfMass(model.model, LEG_JOINT_NAMES)
         return WalkingPattern(self.plan, params, legs=legs, com_model=com)

@@ -154,3 +154,14 @@ def test_the_labs_swing_guard_keeps_the_swing_foot_down_at_both_ends_of_its_sing
     assert quarter == pytest.approx((target.x_m - feet[start, 0]) * blend)
     with pytest.raises(ValueError, match="swing_guard_s"):
         WalkingPattern(straight_walk_plan(2, 0.2, DYNAMIC), WalkingParams(swing_guard_s=0.4))
+
+
+def test_the_preview_height_sets_the_cart_tables_zc_alone():
+    """preview_height_m (the lab's zc above the ankle): the preview designs on it, the planned
+    CoM stays at com_height_m, and the CoM swings wider on the lower cart-table."""
+    plan = straight_walk_plan(2, 0.2, DYNAMIC)
+    plain = WalkingPattern(plan, WalkingParams(com_height_m=0.8))
+    lower = WalkingPattern(plan, WalkingParams(com_height_m=0.8, preview_height_m=0.7))
+    assert lower.preview_gains.model.com_height_m == 0.7
+    assert np.all(lower.com_position_m[:, 2] == 0.8)
+    assert np.abs(lower.com_position_m[:, 1]).max() > np.abs(plain.com_position_m[:, 1]).max()
