@@ -182,6 +182,9 @@ class WalkingSection(Section):
         knee and ankle pitch, and the support hip roll's ramped offsets (4 / 8.5 deg).
     com_measured_from "measured-pelvis": the lab's May-June 2018 form (pelvis measured + kp
         (CoM desired - CoM measured), kp 0.9-1.0, both measured with the stance sole flat).
+    com_feedback_angles: the joint angles the CoM feedback (and the stabiliser) measure the
+        robot by: "link" (the link encoders) or "motor" (the actuators' own angles, as the lab's
+        code did: walking_controller.cpp `getRobotState` reads its model updated from them).
     com_stabiliser_gain, com_stabiliser_damping_s: ours, beyond the paper
         (controller/walking/com_stabiliser.py): every controller's commanded pelvis moves by
         -(gain e + damping e') with e the whole CoM's error measured from the link encoders
@@ -193,6 +196,7 @@ class WalkingSection(Section):
     com_measured_from: CenterOfMassMeasurement = Field(
         CenterOfMassMeasurement.COMMANDED_PELVIS, strict=False
     )
+    com_feedback_angles: Literal["link", "motor"] = "link"
     deflection_model: bool = True
     support_hip_roll_offsets: bool = True
     com_stabiliser_gain: float = Field(0.0, ge=0, le=10)
