@@ -129,6 +129,14 @@ class ControllerParams:
         goal of "gc" and the LQR controllers: u += dtheta_plan/dt / Kp, the inverse of the
         paper's servo model (4) (theta_m follows u with the lag 1/Kp), which under a moving
         reference leaves the motor behind by its velocity over Kp (ours; docs/walking.md).
+    dob_expects_gravity_lag: the DOB's nominal servo holds the gravity compensator's load with
+        the servo cascade's static stiffness (ours; needs servo_cascade, else no effect). The
+        paper's nominal (4) holds any load without lag, so on a servo of finite static
+        stiffness Kpp kv (the H54's velocity loop) the DOB reads the compensated weight's lag
+        tau_g / (Kpp kv) as a disturbance and yields to it by Kdist: the joint gives way to
+        the very load (8) offsets. With it, the DOB compares Pn^-1 theta_m against the goal
+        sent minus that expected lag, (1/(Kpp kv)) / C x ug, and yields to the rest: the
+        unplanned loads (docs/walking.md).
     """
 
     joints: FlexibleJointParams
@@ -148,6 +156,7 @@ class ControllerParams:
     kdist_reference: KdistReference = "per-tick"
     reference_feedforward: bool = False
     servo_feedforward: bool = False
+    dob_expects_gravity_lag: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.joints, FlexibleJointParams):
@@ -510,6 +519,13 @@ class _LqrController(JointController):
         self._fed_back = np.zeros(3 * n)
         self._servo_increment = np.zeros(n)  # servo_feedforward's increment of the lead
         self._servo_gain = params.joints.servo_gain_per_s
+        # dob_expects_gravity_lag: the servo's static lag per rad of ug, (1/(Kpp kv)) / C
+        self._expected_lag_per_ug: np.ndarray | None = None
+        cascade = params.servo_cascade
+        if use_dob and params.dob_expects_gravity_lag and cascade is not None:
+            servo = 1.0 / cascade.static_stiffness_nm_per_rad(params.joints)
+            self._expected_lag_per_ug = servo / params.compensator_compliance_rad_per_nm
+        self._expected_sent = np.zeros(n)
 
     @property
     def lqr_gain(self) -> TrackingGain:
@@ -598,7 +614,12 @@ class _LqrController(JointController):
         self._reference[:] = reference
         if self._dob is not None:
             # compares against the goal sent last tick (composition.u after notify_applied)
-            dob_term = self._dob.update(motor, self._composition.u)
+            sent = self._composition.u
+            lag = self._expected_lag_per_ug
+            if lag is not None:  # the nominal servo under ug's load
+                np.multiply(self._composition.ug, lag, out=self._expected_sent)
+                sent = np.subtract(sent, self._expected_sent, out=self._expected_sent)
+            dob_term = self._dob.update(motor, sent)
             scale = self._gain.dob_gain_scale
             if scale is not None:
                 dob_term = np.multiply(dob_term, scale, out=self._dob_scaled)

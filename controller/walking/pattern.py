@@ -49,7 +49,17 @@ class WalkingParams:
     pelvis_offset_from_com_m: pelvis origin minus CoM in the pelvis's yaw frame (the start
     value of the per-tick solve when a CoM model is given); com_tolerance_m and
     com_max_iterations: that solve's tolerance per axis and iteration limit; zmp: smooth
-    double-support transitions by default (lower peak error than linear ones, same RMS)."""
+    double-support transitions by default (lower peak error than linear ones, same RMS);
+    swing_guard_s: how long the swing foot stays on the ground (unloaded, the ZMP on the
+    stance foot) at each end of its single support: it lifts swing_guard_s after the single
+    support begins and lands swing_guard_s before it ends (0: the swing fills the single
+    support; the lab's code: t_rest_temp = 0.1 s, psh117/dyros_jet walking_controller.cpp
+    `getFootTrajectory`, so that a foot that arrives late still lands before the ZMP moves
+    onto it); preview_height_m: the cart-table's zc in the preview controller alone (None:
+    com_height_m, the CoM's height above the ground the ZMP lies on; the lab's code takes
+    the CoM's height in its support foot's frame, the ankle: walking_controller.cpp,
+    `updateInitialState`, zc_ = com_support_init_(2)), the planned CoM staying at
+    com_height_m."""
 
     dt_s: float = 0.005
     com_height_m: float = 0.8
@@ -61,6 +71,8 @@ class WalkingParams:
     )
     swing_height_m: float = 0.05
     ankle_height_m: float = SOLE_BELOW_ANKLE_M
+    swing_guard_s: float = 0.0
+    preview_height_m: float | None = None
     pelvis_offset_from_com_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     com_tolerance_m: float = 1e-7
     com_max_iterations: int = 50
@@ -72,7 +84,7 @@ class WalkingParams:
             raise ValueError(
                 f"com_max_iterations must be an int >= 1, got {self.com_max_iterations}"
             )
-        for name in ("swing_height_m", "ankle_height_m"):
+        for name in ("swing_height_m", "ankle_height_m", "swing_guard_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value}")
@@ -82,7 +94,9 @@ class WalkingParams:
         object.__setattr__(self, "pelvis_offset_from_com_m", offset)
 
     def cart_table(self) -> CartTableParams:
-        return CartTableParams(self.com_height_m, self.gravity_mps2, self.dt_s)
+        """The preview controller's cart-table (zc: preview_height_m, else com_height_m)."""
+        height = self.com_height_m if self.preview_height_m is None else self.preview_height_m
+        return CartTableParams(height, self.gravity_mps2, self.dt_s)
 
 
 @dataclass(frozen=True)
@@ -218,15 +232,22 @@ class WalkingPattern:
                 start = placed[side]
                 if side is swinging:
                     target = self.plan.footsteps[seg.footstep_index]
+                    guard = self.params.swing_guard_s
+                    airborne = seg.n_ticks * self.dt_s - 2.0 * guard
+                    if airborne <= 0.0:
+                        raise FootstepPlanError(
+                            f"swing_guard_s = {guard} s leaves no swing in a single support of "
+                            f"{seg.n_ticks * self.dt_s:.3f} s"
+                        )
                     swing = SwingFootTrajectory(
                         (start.x_m, start.y_m),
                         (target.x_m, target.y_m),
                         start.yaw_rad,
                         target.yaw_rad,
                         self.params.swing_height_m,
-                        seg.n_ticks * self.dt_s,
+                        airborne,
                     )
-                    t = np.arange(seg.n_ticks) * self.dt_s
+                    t = np.arange(seg.n_ticks) * self.dt_s - guard  # held at both ends
                     pose[rows, side.index], vel[rows, side.index], acc[rows, side.index] = (
                         swing.evaluate(t)
                     )

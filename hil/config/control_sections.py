@@ -108,6 +108,10 @@ class ControllerSection(Section):
     paper: the ground reaction the plan needs, m (g - a_com), split at the plan's ZMP;
     controller/planned_motion.py, controller/humanoid/gravity.py). Without a plan (standing,
     the testbed) both are the paper's.
+    dob_expects_gravity_lag: the DOB's nominal servo holds (8)'s load with the servo cascade's
+    static stiffness Kpp kv (ours; [model] servo_model = "cascade" only): the paper's nominal
+    (4) has no static lag, so on a servo with one the DOB reads the compensated weight's lag
+    as a disturbance and yields to it (controller/controllers.py, docs/walking.md).
     """
 
     name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
@@ -126,6 +130,7 @@ class ControllerSection(Section):
     kdist_reference: Literal["per-tick", "paper-yield"] = "per-tick"  # what Kdist yields against
     reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments
     servo_feedforward: bool = False  # with a plan: the goal leads by the servo's lag, v / Kp
+    dob_expects_gravity_lag: bool = False  # the DOB's nominal servo lags under ug's load
     link_velocity_increment: str = "backward-difference"
 
     @field_validator("composition")
@@ -177,6 +182,9 @@ class WalkingSection(Section):
         knee and ankle pitch, and the support hip roll's ramped offsets (4 / 8.5 deg).
     com_measured_from "measured-pelvis": the lab's May-June 2018 form (pelvis measured + kp
         (CoM desired - CoM measured), kp 0.9-1.0, both measured with the stance sole flat).
+    com_feedback_angles: the joint angles the CoM feedback (and the stabiliser) measure the
+        robot by: "link" (the link encoders) or "motor" (the actuators' own angles, as the lab's
+        code did: walking_controller.cpp `getRobotState` reads its model updated from them).
     com_stabiliser_gain, com_stabiliser_damping_s: ours, beyond the paper
         (controller/walking/com_stabiliser.py): every controller's commanded pelvis moves by
         -(gain e + damping e') with e the whole CoM's error measured from the link encoders
@@ -188,6 +196,7 @@ class WalkingSection(Section):
     com_measured_from: CenterOfMassMeasurement = Field(
         CenterOfMassMeasurement.COMMANDED_PELVIS, strict=False
     )
+    com_feedback_angles: Literal["link", "motor"] = "link"
     deflection_model: bool = True
     support_hip_roll_offsets: bool = True
     com_stabiliser_gain: float = Field(0.0, ge=0, le=10)

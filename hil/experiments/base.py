@@ -121,10 +121,15 @@ class ReferenceFeedback(abc.ABC):
 
     @abc.abstractmethod
     def reference(
-        self, time_s: float, planned_rad: np.ndarray, link_angle_rad: np.ndarray
+        self,
+        time_s: float,
+        planned_rad: np.ndarray,
+        link_angle_rad: np.ndarray,
+        motor_angle_rad: np.ndarray | None = None,
     ) -> np.ndarray:
         """The desired link angles [rad] at experiment time `time_s` from the planned ones
-        (the run's reference table) and this tick's measured link angles (every joint)."""
+        (the run's reference table) and this tick's measured link angles (every joint), and
+        its motor angles where the loop has them."""
 
     @abc.abstractmethod
     def describe(self) -> str:

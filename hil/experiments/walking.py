@@ -84,6 +84,10 @@ EDGE_MARGIN_M = 0.01
 # DSP2, rests and DSP1 with moves of t_double = 0.1 s (`parameterSetting`, `onestepZmp`).
 LAB_ZMP_INWARD_OFFSET_M = 0.02
 LAB_ZMP_MOVE_S = 0.1
+# The lab's swing foot (walking_controller.cpp, `getFootTrajectory`): on the ground, unloaded,
+# for t_rest_temp = 0.1 s at each end of the single support (it lifts 0.1 s after the ZMP has
+# reached the stance foot and lands 0.1 s before the ZMP leaves it).
+LAB_SWING_GUARD_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -104,6 +108,9 @@ class WalkingExperiment(Experiment):
     # double support's shape (controller.walking.ZmpTransition: "lab-split", "smooth", "linear")
     zmp_inward_offset_m: float = LAB_ZMP_INWARD_OFFSET_M
     zmp_transition: str = "lab-split"
+    swing_guard_s: float = 0.0  # controller.walking.WalkingParams; LAB_SWING_GUARD_S: the lab's
+    # the preview's zc: the CoM above the ground (False) or, as the lab's code, above the ankle
+    preview_height_above_ankle: bool = False
 
     # --- the plan and its pattern ----------------------------------------------------------
     @functools.cached_property
@@ -145,7 +152,10 @@ class WalkingExperiment(Experiment):
             ZmpReferenceParams,
             ZmpTransition,
         )
-        from controller.walking.dyros_jet_figures import SOLE_CENTRE_AHEAD_OF_ANKLE_M
+        from controller.walking.dyros_jet_figures import (
+            SOLE_BELOW_ANKLE_M,
+            SOLE_CENTRE_AHEAD_OF_ANKLE_M,
+        )
 
         model = leg_model()
         q = model.standing_configuration(np.asarray(WALKING_READY_LEG_ANGLES_RAD), side=0)
@@ -161,6 +171,10 @@ class WalkingExperiment(Experiment):
                 forward_offset_m=SOLE_CENTRE_AHEAD_OF_ANKLE_M,
                 inward_offset_m=self.zmp_inward_offset_m,
                 lab_move_s=LAB_ZMP_MOVE_S,
+            ),
+            swing_guard_s=self.swing_guard_s,
+            preview_height_m=(
+                com_height - SOLE_BELOW_ANKLE_M if self.preview_height_above_ankle else None
             ),
         )
         com = PinocchioCenterOfMass(model.model, LEG_JOINT_NAMES)

@@ -51,12 +51,15 @@ class LabWalkingScheme(ReferenceFeedback):
         deflection: DeflectionModel | None = None,
         hip_roll: SupportHipRollOffsets | None = None,
         stabiliser: CenterOfMassStabiliser | None = None,
+        feedback_from_motors: bool = False,
     ) -> None:
         self.pattern = pattern
         self.com_feedback = com_feedback
         self.deflection = deflection
         self.hip_roll = hip_roll
         self.stabiliser = stabiliser
+        # the CoM feedback's angles: the motors' (the lab's code) or the links' (default)
+        self.feedback_from_motors = feedback_from_motors
         self._stabiliser = None if stabiliser is None else stabiliser.tracker(pattern.dt_s)
         self.correction_m = np.zeros(2)  # the lab's feedback's
         self.stabiliser_correction_m = np.zeros(2)
@@ -100,6 +103,7 @@ class LabWalkingScheme(ReferenceFeedback):
             deflection=deflection,
             hip_roll=hip_roll,
             stabiliser=stabiliser,
+            feedback_from_motors=walking.com_feedback_angles == "motor",
         )
 
     def describe(self) -> str:
@@ -124,13 +128,20 @@ class LabWalkingScheme(ReferenceFeedback):
         return text
 
     def reference(
-        self, time_s: float, planned_rad: np.ndarray, link_angle_rad: np.ndarray
+        self,
+        time_s: float,
+        planned_rad: np.ndarray,
+        link_angle_rad: np.ndarray,
+        motor_angle_rad: np.ndarray | None = None,
     ) -> np.ndarray:
         pattern = self.pattern
         tick = min(pattern.n_ticks - 1, max(0, int(round(time_s / pattern.dt_s))))
         angles = np.asarray(planned_rad, dtype=float)
         if self.com_feedback is not None or self._stabiliser is not None:
-            angles = self._com_corrected(tick, angles, link_angle_rad)
+            measured = link_angle_rad
+            if self.feedback_from_motors and motor_angle_rad is not None:
+                measured = motor_angle_rad
+            angles = self._com_corrected(tick, angles, measured)
         if self.deflection is not None:
             gravity = self._gravity
             gravity.set_support(support_state(pattern.timeline.phase(tick).support))

@@ -104,6 +104,7 @@ def build_controller(
         kdist_reference=section.kdist_reference,
         reference_feedforward=section.reference_feedforward,
         servo_feedforward=section.servo_feedforward,
+        dob_expects_gravity_lag=section.dob_expects_gravity_lag,
     )
     sm = robot.sm(start, contact)
     return make_controller(choice.kind, params, sm=sm, dt_s=period_s, gravity=robot.gravity)

@@ -401,7 +401,7 @@ class Loop:
         self._schedule(k, link)
         if self.feedback is not None:
             time_s = self.timeline.experiment_time_s(k)
-            reference = self.feedback.reference(time_s, reference, link)
+            reference = self.feedback.reference(time_s, reference, link, sample.motor_angle_rad)
         controller = self.controller
         if not self._controller_started:  # bumpless: from the goal the servo is driven with
             controller.reset(sample.motor_angle_rad, link, reference, self._last_goal)

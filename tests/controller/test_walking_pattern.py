@@ -130,3 +130,38 @@ def test_construction_time_of_a_slow_walk():
         straight_walk_plan(6, 0.2, StepTiming(0.8, 3.2, 1.6, 1.0)), legs=LegsGeometry.dyros_jet()
     )
     assert time.perf_counter() - start < 5.0  # measured ~0.65 s for 5960 ticks
+
+
+def test_the_labs_swing_guard_keeps_the_swing_foot_down_at_both_ends_of_its_single_support():
+    """swing_guard_s (the lab's t_rest_temp, 0.1 s): the foot stays at its lift-off place for
+    the first 0.1 s of the single support, is at its footstep from 0.1 s before its end, and
+    reaches the apex at mid single support; the swing in between is the quintic over 0.6 s."""
+    guarded = WalkingPattern(straight_walk_plan(2, 0.2, DYNAMIC), WalkingParams(swing_guard_s=0.1))
+    single = next(s for s in guarded.timeline.segments if s.kind is SegmentKind.SINGLE_SUPPORT)
+    side = single.landing_side.index
+    start, end = single.start_tick, single.start_tick + single.n_ticks
+    feet = guarded.foot_position_m[:, side]
+    assert np.array_equal(feet[start : start + 20], np.repeat(feet[start - 1 : start], 20, axis=0))
+    target = guarded.plan.footsteps[single.footstep_index]
+    assert np.allclose(feet[end - 20 : end, :2], [target.x_m, target.y_m], atol=1e-12)
+    ankle = guarded.params.ankle_height_m
+    assert np.allclose(feet[end - 20 : end, 2], ankle, atol=1e-12)
+    assert feet[start + 80, 2] == pytest.approx(ankle + guarded.params.swing_height_m)
+    # the airborne part is the quintic over 0.6 s: a quarter of the way, s = 0.25 of 0.6 s
+    quarter = feet[start + 20 + 30, 0] - feet[start, 0]
+    s = 0.25
+    blend = s**3 * (10 - 15 * s + 6 * s * s)
+    assert quarter == pytest.approx((target.x_m - feet[start, 0]) * blend)
+    with pytest.raises(ValueError, match="swing_guard_s"):
+        WalkingPattern(straight_walk_plan(2, 0.2, DYNAMIC), WalkingParams(swing_guard_s=0.4))
+
+
+def test_the_preview_height_sets_the_cart_tables_zc_alone():
+    """preview_height_m (the lab's zc above the ankle): the preview designs on it, the planned
+    CoM stays at com_height_m, and the CoM swings wider on the lower cart-table."""
+    plan = straight_walk_plan(2, 0.2, DYNAMIC)
+    plain = WalkingPattern(plan, WalkingParams(com_height_m=0.8))
+    lower = WalkingPattern(plan, WalkingParams(com_height_m=0.8, preview_height_m=0.7))
+    assert lower.preview_gains.model.com_height_m == 0.7
+    assert np.all(lower.com_position_m[:, 2] == 0.8)
+    assert np.abs(lower.com_position_m[:, 1]).max() > np.abs(plain.com_position_m[:, 1]).max()

@@ -256,9 +256,8 @@ def test_the_inward_shift_moves_each_stance_point_by_exactly_its_amount(inward):
         if seg.kind.value == "single_support":
             towards_other = -seg.landing_side.other.lateral_sign  # stance foot -> other foot
             assert np.array_equal(shifted[rows, 0], plain[rows, 0])
-            assert np.allclose(
-                shifted[rows, 1] - plain[rows, 1], towards_other * inward, atol=1e-15
-            )
+            moved = shifted[rows, 1] - plain[rows, 1]
+            assert np.allclose(moved, towards_other * inward, atol=1e-15)
         elif seg.kind.value != "double_support":
             assert np.array_equal(shifted[rows], plain[rows])
 

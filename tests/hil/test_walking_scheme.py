@@ -115,6 +115,26 @@ def test_the_2018_form_cancels_the_sway_and_keeps_the_legs_shape(config) -> None
             assert np.abs(scheme.correction_m).max() < 0.2 * abs(com[1] - desired[1])
 
 
+def test_the_feedback_measures_by_the_motors_where_configured(config) -> None:
+    """com_feedback_angles = "motor" (the lab's code): the motors' angles in place of the
+    links'; a motor bent off the plan moves the correction, a link bent off it does not (and
+    the other way round by default)."""
+    tick = 1000
+    planned = PATTERN.joint_angles_rad[tick]
+    bent = planned.copy()
+    bent[[3, 9]] += np.radians([3.0, -3.0])
+    motors = config.changed("walking", com_feedback_angles="motor")
+    for walking, links, motor, moved in (
+        (motors, bent, planned, False),
+        (motors, planned, bent, True),
+        (config, planned, bent, False),
+        (config, bent, planned, True),
+    ):
+        scheme = LabWalkingScheme.for_run(PATTERN, walking, ControllerChoice(ControllerKind.GC))
+        scheme.reference(tick * PATTERN.dt_s, planned, links, motor)
+        assert bool(np.abs(scheme.correction_m).max() > 1e-4) is moved  # 0.5 mm against 4e-8
+
+
 def test_the_loop_follows_and_logs_the_corrected_reference(config, tmp_path: Path) -> None:
     """pid, the CoM feedback off: the reference the loop logged (and sent: pid's goal is its
     reference) is the plan plus the deflection model of (5)'s torque at the planned posture
