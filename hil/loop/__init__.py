@@ -8,7 +8,10 @@ robot_model.py         the controller's model of the robot (single links, DYROS-
 gain_scheduler.py      the LQR gain rescheduled with posture and support, off the 200 Hz path
 controller_factory.py  the configured robot model + a controller choice -> a controller
 request.py             what a run is asked to do; Ctrl-C / SIGTERM
-runner.py              the loop itself (`Loop`, `run_experiment`)
+runner.py              the loop itself (`Loop`, `run_experiment`): each tick, tick 0
+experiment_feed.py     what the experiment hands the loop: the reference ring, the phase's settings
+run_record.py          the tick's log rows kept and written, the supervisor's news logged
+run_end.py             every exit path: torque state, bus closed, metrics, summary.json
 """
 
 from hil.loop.clock import LockstepClock, LoopClock, Tick, WallClock

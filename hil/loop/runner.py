@@ -33,7 +33,6 @@ log stays in this process, line-buffered, a tick's rows written during the next 
 
 from __future__ import annotations
 
-import dataclasses
 import gc
 import math
 import time
@@ -47,21 +46,22 @@ from controller import JointController
 from drivers.joint_bus import BusError, JointBus, JointDevices, JointSample, wrench_keys
 from hil.config import Config
 from hil.experiments import Experiment
-from hil.experiments.base import ReferenceFeedback
 from hil.loop.clock import LoopClock, Tick
 from hil.loop.controller_factory import build_controller, joint_params
+from hil.loop.experiment_feed import ExperimentFeed
 from hil.loop.gain_scheduler import GainScheduler
 from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import RunRequest, StopFlag
 from hil.loop.robot_model import robot_model
+from hil.loop.run_end import RunEnd
+from hil.loop.run_record import RunRecording
 from hil.loop.start_gate import StartRefused, start_gate
 from hil.loop.timeline import Phase, Timeline
-from hil.output.log_process import LogWriterLost, open_run_log
+from hil.output.log_process import open_run_log
 from hil.output.records import RunResult
-from hil.output.rundir import load_run
 from hil.output.runlog import RunLog
-from hil.safety import ReferenceOutsideLimits, SafeState, Supervisor
-from hil.vocabulary import Reaction, RunEnding, Termination
+from hil.safety import SafeState, Supervisor
+from hil.vocabulary import RunEnding, Termination
 from hil.wiring.hardware import configured_current_limits_a
 
 DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
@@ -73,7 +73,6 @@ REFERENCE_AHEAD_TICKS = 12_000
 # vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
 # (serial.SerialException is an OSError).
 LOST_BUS_ERRORS = (BusError, can.CanError, OSError)
-_STATE_NAMES = {state: state.name.lower() for state in SafeState}  # as log.csv writes them
 
 
 @dataclass
@@ -99,7 +98,7 @@ def _supervisor(config: Config, devices: JointDevices, period_s: float) -> Super
     )
 
 
-class Loop:
+class Loop(ExperimentFeed, RunRecording, RunEnd):
     """One run; `run()` returns its result. See the module docstring."""
 
     def __init__(
@@ -268,32 +267,6 @@ class Loop:
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
             on_progress(tick.time_s, self.timeline.end * self.period)
 
-    def _reference_feedback(self) -> ReferenceFeedback | None:
-        """The experiment's correction of its reference from the measured sample, if any."""
-        return self.experiment.reference_feedback(self.config, self.request.choice)
-
-    def _open_loop_offsets(self, max_goal_rate_rad_s: float) -> np.ndarray | None:
-        """An open-loop experiment's goal offsets (None: closed loop), refused before anything
-        moves if they would move the goal faster than the supervisor allows (it would rewrite
-        the goals the experiment is about)."""
-        offsets = self.experiment.goal_offsets(self.period, self.timeline.experiment_ticks, self.n)
-        if offsets is None:
-            return None
-        offsets = np.asarray(offsets, dtype=float)
-        if offsets.shape != (self.timeline.experiment_ticks, self.n) or not np.all(
-            np.isfinite(offsets)
-        ):
-            raise ValueError(f"{self.experiment.name}: goal offsets not finite ticks x joints")
-        steps = np.abs(np.diff(offsets, axis=0, prepend=offsets[:1]))
-        rate = float(steps.max(initial=0.0)) / self.period
-        if rate > max_goal_rate_rad_s * (1 + 1e-9):
-            raise ReferenceOutsideLimits(
-                f"{self.experiment.name} moves the goal at up to {rate:.3f} rad/s, above "
-                f"[safety] max_goal_rate_rad_s = {max_goal_rate_rad_s:g}: the supervisor would "
-                "rewrite it; nothing was sent"
-            )
-        return offsets
-
     # --- tick 0 ------------------------------------------------------------------------------
     def _start(self, sample: JointSample) -> JointSample:
         sample = start_gate(
@@ -327,23 +300,6 @@ class Loop:
         if self.feedback is not None:
             self.log.event(0.0, "reference_feedback", self.feedback.describe())
         return sample
-
-    def _reference_ahead(self, k: int) -> None:
-        """Fill the ring up to tick k + its length - 1: the slots of ticks up to k, whose rows
-        are written (tick k's row is kept for the next tick's log: not overwritten)."""
-        ring = self.references
-        stop = min(self.timeline.end, k + len(ring))
-        while self._reference_filled < stop:
-            tick = self._reference_filled
-            ring[tick % len(ring)] = self._reference_at(tick)
-            self._reference_filled = tick + 1
-
-    def _reference_at(self, k: int) -> float | np.ndarray:
-        """The link reference of tick k (re-homing first, then the experiment's)."""
-        timeline = self.timeline
-        if self.homing is not None and k < timeline.hold_ticks + timeline.homing_ticks:
-            return self.homing.reference((k - timeline.hold_ticks) * self.period)
-        return self.experiment.reference(timeline.experiment_time_s(k))
 
     # --- each tick ---------------------------------------------------------------------------
     def _watch(self, tick: Tick, sample: JointSample) -> None:
@@ -411,50 +367,6 @@ class Loop:
         self._last_step_tick = k
         return controller.step(sample.motor_angle_rad, link, reference), reference
 
-    def _schedule(self, k: int, link: np.ndarray) -> None:
-        """What the experiment's phase sets: the support state (gravity compensator), the LQR's
-        contact (Sm and the gain), and a Kdist schedule (the controller ramps between values)."""
-        time_s = self.timeline.experiment_time_s(k)
-        support = self.experiment.support(time_s)
-        if support != self._support:
-            self.robot.set_support(support)
-            self._support = support
-        if self.scheduler is not None:
-            lead = self.scheduler.lead_ticks
-            self.scheduler.update(k, link, self._lqr_contact(k), self._lqr_contact(k + lead))
-        motion = self.experiment.planned_motion(time_s)  # a walk's plan: GC load, LQR
-        self.robot.set_planned_motion(motion)
-        self.controller.set_planned_motion(motion)
-        if self.request.choice.kind.has_dob:
-            kdist = self.experiment.kdist_at(time_s, self.request.choice.kdist)
-            if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):
-                self.controller.set_kdist(kdist)
-                self._kdist = np.array(kdist, dtype=float)
-
-    def _lqr_contact_table(self, duration_s: float) -> list[object]:
-        """The LQR's contact on the experiment's own grid: the paper's switch at mid double
-        support needs the whole phase ahead (hil/loop/robot_model.py). A robot whose Sm is
-        constant has no contact: one entry."""
-        if not self.robot.rescheduled:
-            return self.robot.lqr_contacts([self.experiment.support(0.0)])
-        ticks = max(1, math.ceil(duration_s / self.period - 1e-9))
-        return self.robot.lqr_contacts(
-            [self.experiment.support(i * self.period) for i in range(ticks)]
-        )
-
-    def _lqr_contact(self, k: int) -> object:
-        """The LQR's contact at tick k (the experiment's grid, held at its ends)."""
-        index = round(self.timeline.experiment_time_s(k) / self.period)
-        return self._lqr_contacts[min(max(index, 0), len(self._lqr_contacts) - 1)]
-
-    def _open_loop_goal(self, k: int) -> np.ndarray:
-        """The goal in force when the experiment began plus its offset for tick k."""
-        assert self._open_loop is not None
-        if self._goal_base is None:
-            self._goal_base = self._last_goal.copy()
-        index = min(k - self.timeline.homing_ticks, len(self._open_loop) - 1)
-        return self._goal_base + self._open_loop[index]
-
     def _injected_overrun(self, time_s: float) -> bool:
         for start, duration in self.request.overruns:
             if start <= time_s < start + max(duration, self.period):
@@ -463,188 +375,8 @@ class Loop:
                 return True
         return False
 
-    # --- the record ----------------------------------------------------------------------------
-    # A tick's log.csv and timing.csv rows are kept (`_keep_record`: nothing it keeps is changed
-    # in place later). The log writer's process gets them at the end of the tick (~20 us for
-    # the humanoid's ~220 numbers). A log in this process (the live view) writes them during
-    # the next tick, between sending the bus requests and collecting the answers: formatting
-    # them costs ~0.3-0.4 ms on the humanoid, time the answers spend travelling anyway; the
-    # last tick's rows are written by `_finish` on every exit path, and a process killed
-    # outright loses them.
-    def _keep_record(
-        self,
-        tick: Tick,
-        sample: JointSample,
-        reference: np.ndarray,
-        goal: np.ndarray | None,
-        phase: Phase,
-        timing: tuple[int, float, float, float, float, float],
-    ) -> None:
-        terms = self.controller.terms if self._controller_started else None
-        zeros = self._zeros
-        extra = sample.extra
-        sensors = [extra.get(name, math.nan) for name in self.sensor_columns]
-        row = (
-            tick.index,
-            tick.time_s,
-            sensors,
-            _STATE_NAMES[self.supervisor.state],
-            phase.value,
-            tick.skipped,
-            (
-                reference,  # rows of the run's reference table, which does not change
-                goal if goal is not None else self._no_goal,  # the supervisor's own copy
-                sample.motor_angle_rad,  # a sample's arrays are the bus's new ones every read
-                sample.link_angle_rad,
-                sample.link_angle_rad - sample.motor_angle_rad,
-                sample.motor_velocity_rad_s,
-                sample.motor_current_a,
-                sample.actuator_fault,
-                sample.torque_enabled,
-                sample.motor_valid,
-                sample.link_valid,
-                sample.link_age_s,
-                terms.uc if terms else zeros,  # `terms` are copies
-                terms.d_hat if terms else zeros,
-                terms.ug if terms else zeros,
-            ),
-            tick.slack_s,
-            tick.measured_period_s,
-        )
-        self._kept = (row, timing)
-
-    def _write_kept_record(self) -> float:
-        """Write the kept rows (if any); returns the seconds it took."""
-        kept, self._kept = self._kept, None
-        if kept is None:
-            return 0.0
-        started = time.perf_counter()
-        self.log.write_tick(*kept)
-        return time.perf_counter() - started
-
-    def _log_safety(self) -> None:
-        """Write the supervisor's new events and notices to events.jsonl (and say them)."""
-        supervisor = self.supervisor
-        for event in supervisor.events[self._logged_events :]:
-            self.log.event(
-                event.time_s,
-                str(event.cause),
-                event.message,
-                joint=event.joint,
-                action=str(event.action),
-                state=event.state,
-                tick=event.tick,
-            )
-            if self.request.on_event is not None:
-                self.request.on_event(
-                    f"  [{event.time_s:7.3f} s] {event.cause} -> {event.action}: {event.message}"
-                )
-        for notice in supervisor.notices[self._logged_notices :]:
-            self.log.event(
-                notice.time_s,
-                str(notice.kind),
-                notice.message,
-                joint=notice.joint,
-                tick=notice.tick,
-            )
-        self._logged_events, self._logged_notices = len(supervisor.events), len(supervisor.notices)
-
     def _now(self) -> float:
         return self.ticks_done * self.period
-
-    # --- every exit path -----------------------------------------------------------------------
-    def _disable(self, time_s: float, why: str, quiet: bool = False) -> bool:
-        """Torque off on every joint; False (and logged, unless `quiet`) if the bus did not take it.
-
-        Any exception counts as a failure: on an exit path a lost port may raise what it likes,
-        and the log must still be completed.
-        """
-        try:
-            self.bus.disable()
-        except Exception as exc:  # noqa: BLE001 - best effort, reported
-            if not quiet:
-                self.log.event(
-                    time_s, "torque_off_failed", f"{why}: could not turn torque off: {exc}"
-                )
-            return False
-        self.log.event(time_s, "torque_off", f"{why}: torque off")
-        return True
-
-    def _exit_path(self) -> list[str]:
-        """The configured exit torque state and the bus closed; notes for summary.json."""
-        time_s = self._now()
-        if not self.opened:
-            return ["bus never opened: nothing was sent"]
-        notes: list[str] = []
-        if self.config.safety.on_exit is Reaction.TORQUE_OFF:
-            ok = self._disable(time_s, "exit")
-            notes.append("torque off" if ok else "torque off FAILED (see events.jsonl)")
-            self.torque_off_failed = not ok
-        else:
-            notes.append(f"torque left {'on' if self.torque.on else 'off'} (on_exit = hold)")
-            self.log.event(time_s, "exit_hold", "exit: torque left as it was (on_exit = hold)")
-        try:
-            self.bus.close()
-        except Exception as exc:  # noqa: BLE001 - best effort, reported
-            notes.append(f"close failed: {exc}")
-            self.log.event(time_s, "close_failed", str(exc))
-        return notes
-
-    def _finish(self, wall_time_s: float) -> None:
-        try:
-            self._write_kept_record()
-        except LogWriterLost as exc:  # the rows of the end are lost with the writer: say so
-            if self.ending.ok:
-                self.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
-        if self.scheduler is not None:
-            self.scheduler.close()
-        self._log_safety()
-        exit_notes = self._exit_path()
-        metrics = self._metrics()
-        choice = self.request.choice
-        summary = {
-            "experiment": self.experiment.name,
-            "controller": str(choice.kind),
-            "controller_label": choice.label,
-            "kdist": choice.kdist if choice.kind.has_dob else None,
-            "termination": self.ending.text,
-            "ticks": self.ticks_done,
-            "wall_time_s": wall_time_s,
-            "exit": exit_notes,
-            "safety_events": [e.record() for e in self.supervisor.events],
-            "safety_notices": [n.record() for n in self.supervisor.notices],
-            "safety_counters": self.supervisor.counters(),
-            "homing": self.homing.to_dict() if self.homing is not None else None,
-            "experiment_start_s": self.timeline.experiment_start_s,
-            "current_limit_a": self.current_limits.tolist(),
-            "gain_schedule": self.scheduler.schedule.record() if self.scheduler else None,
-            "reference_feedback": self.feedback.describe() if self.feedback else None,
-            "metrics": metrics,
-        }
-        self.log.write_summary(summary)
-        self.log.close()
-        self.result = RunResult(
-            self.request.out_dir,
-            self.ending,
-            metrics,
-            list(self.supervisor.events),
-            self.ticks_done,
-            wall_time_s,
-            tuple(exit_notes),
-            self.torque_off_failed,
-        )
-
-    def _metrics(self) -> dict[str, Any]:
-        if self.log.rows < 2:
-            return {}
-        self.log.close()  # flushed and complete before it is read back
-        try:
-            run = load_run(self.log.dir)  # summary.json comes after the metrics: say when the
-            # experiment's timeline started here
-            summary = {"experiment_start_s": self.timeline.experiment_start_s}
-            return self.experiment.metrics(dataclasses.replace(run, summary=summary))
-        except (ValueError, KeyError) as exc:
-            return {"error": str(exc)}
 
 
 def sensor_columns(config: Config) -> tuple[str, ...]:

@@ -4,7 +4,7 @@ A run directory holds:
     meta.json     what ran: configuration, the hardware driven, controller, experiment, seed,
                   versions, start time
     log.csv       one row per tick (columns below), line-buffered: on disk when the row is done
-                  (the loop writes a tick's row during the next tick, see hil/loop/runner.py)
+                  (the loop writes a tick's row during the next tick, see hil/loop/run_record.py)
     events.jsonl  supervisor events (faults, safe states, exits), one JSON object per line
     summary.json  metrics and how the run ended (written at the end, even after an error)
     timing.csv    compute time per tick (kept out of log.csv, so lock-step logs are reproducible):
