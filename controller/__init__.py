@@ -7,16 +7,7 @@ nothing of ours; device facts (encoder resolutions, servo figures) come from the
 """
 
 from controller.composition import COMPOSITION_READINGS, Composition, CompositionReading
-from controller.controllers import (
-    CONTROLLER_NAMES,
-    LAB_KDIST_RAMP_S,
-    ControllerKind,
-    ControllerParams,
-    ControllerUsageError,
-    ControlTerms,
-    JointController,
-    make_controller,
-)
+from controller.controllers import make_controller
 from controller.dob import (
     LAB_DOB_CUTOFF_HZ,
     LAB_Q_FILTER_POLE,
@@ -40,6 +31,7 @@ from controller.gravity import (
     servo_static_stiffness,
     support_force_split,
 )
+from controller.joint_controller import ControllerUsageError, ControlTerms, JointController
 from controller.lqr import (
     LQR_DESIGNS,
     LqrDesign,
@@ -59,6 +51,7 @@ from controller.model import (
     flexible_joint_state_space,
     single_link_sm,
 )
+from controller.params import CONTROLLER_NAMES, LAB_KDIST_RAMP_S, ControllerKind, ControllerParams
 from controller.planned_motion import PlannedMotion
 from controller.servo_cascade import ServoCascadeParams
 

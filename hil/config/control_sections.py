@@ -95,7 +95,7 @@ class ModelSection(Section):
 
 
 class ControllerSection(Section):
-    """The controller (Kim et al. Sec. III) and its options; controller/controllers.py
+    """The controller (Kim et al. Sec. III) and its options; controller/params.py
     ControllerParams says what each does. The choices are the controller package's own.
 
     gc_compliance: what the gravity compensator (8) offsets, ug = C tau_g: "joint" (default),

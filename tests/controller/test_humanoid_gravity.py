@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from controller.controllers import ControllerParams, make_controller
+from controller import ControllerParams, make_controller
 from controller.humanoid import (
     WALKING_READY_LEG_ANGLES_RAD,
     HumanoidLegGravity,

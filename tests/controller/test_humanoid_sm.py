@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from controller.controllers import ControllerParams
+from controller import ControllerParams
 from controller.humanoid import (
     WALKING_READY_LEG_ANGLES_RAD,
     ContactProjectedInertia,
