@@ -112,7 +112,16 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
         self.encoder_configs: tuple[LinkEncoderConfig, ...] = tuple(encoders)
         self.force_sensor_config = force_sensor
         self.force_torque_configs: tuple[ForceTorqueSensorConfig, ...] = tuple(force_torque_sensors)
-        self._devices: list[SensorDevice] = []
+        self._devices = self._add_nodes(configs, sdo_timeout_s)
+        self._init_state(configs, heartbeat_timeout_factor)
+
+    def _add_nodes(
+        self,
+        configs: Sequence[LinkEncoderConfig | ForceSensorConfig | ForceTorqueSensorConfig],
+        sdo_timeout_s: float,
+    ) -> list[SensorDevice]:
+        """A canopen RemoteNode per sensor on the network, its heartbeat and EMCY handlers."""
+        devices: list[SensorDevice] = []
         for index, config in enumerate(configs):
             node = canopen.RemoteNode(config.node_id, self._object_dictionary)
             node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
@@ -125,8 +134,15 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
                 label = f"force/torque sensor node {config.node_id} ({config.label})"
             else:
                 label = f"force sensor node {config.node_id}"
-            self._devices.append(SensorDevice(label=label, config=config, node=node))
+            devices.append(SensorDevice(label=label, config=config, node=node))
+        return devices
 
+    def _init_state(
+        self,
+        configs: Sequence[LinkEncoderConfig | ForceSensorConfig | ForceTorqueSensorConfig],
+        heartbeat_timeout_factor: float,
+    ) -> None:
+        """The per-device and per-SYNC state, allocated once (arrays indexed like `_devices`)."""
         n_devices = len(self._devices)
         self._n_encoders = len(self.encoder_configs)
         self._tpdo_device: dict[int, int] = {}
