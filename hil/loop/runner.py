@@ -235,6 +235,9 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
 
     def _cycle(self, tick: Tick) -> None:
         k = tick.index
+        scheduler = self.scheduler
+        if scheduler is not None:
+            scheduler.bus_read(True)
         t_read = time.perf_counter()
         self.bus.start_read()
         try:  # the last tick's rows, while the answers travel
@@ -242,6 +245,8 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         finally:  # whatever happened, the answers are collected: no transaction left open
             sample = self.bus.finish_read()
         t_compute = time.perf_counter()
+        if scheduler is not None:
+            scheduler.bus_read(False)
         log_s = wait_log_s if self._rows_in_wait else self._handed_over_s
         if k == 0:
             sample = self._start(sample)

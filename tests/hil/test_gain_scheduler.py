@@ -5,6 +5,7 @@ the middle of each double support (the paper's Sec. III-C)."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -200,3 +201,43 @@ def test_a_designer_process_that_died_is_an_error_not_a_hang() -> None:
                 scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
     finally:
         scheduler.close()
+
+
+def _process_state(pid: int) -> str:
+    """The process's state letter from /proc (T: stopped)."""
+    with open(f"/proc/{pid}/stat") as stat:
+        return stat.read().rsplit(")", 1)[1].split()[0]
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+@pytest.mark.parametrize("wall_clock", [False, True], ids=["lockstep", "wall-clock"])
+def test_a_design_waits_while_the_wall_clock_loop_reads_the_bus(wall_clock: bool) -> None:
+    """On the wall clock a design in progress is stopped while the loop waits for the bus's
+    answers and goes on after them (it never runs beside the read); in lock-step it is never
+    stopped. The design still arrives, and a scheduler closed mid-read ends its designer."""
+    scheduler, recorder = _scheduler(wall_clock=wall_clock)
+    process = scheduler._worker._process  # type: ignore[attr-defined]
+    scheduler.update(0, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
+    assert scheduler._pending is not None  # type: ignore[attr-defined]
+    scheduler.bus_read(True)
+    stopped = _process_state(process.pid) == "T"
+    deadline = time.monotonic() + 0.5
+    while not stopped and time.monotonic() < deadline:  # (the signal is asynchronous)
+        time.sleep(0.005)
+        stopped = _process_state(process.pid) == "T"
+    assert stopped is wall_clock
+    scheduler.bus_read(False)
+    time.sleep(0.05)
+    assert _process_state(process.pid) != "T"
+    tick, deadline = 1, time.monotonic() + 20.0
+    while not recorder.installed and time.monotonic() < deadline:
+        scheduler.bus_read(True)
+        scheduler.bus_read(False)
+        scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
+        tick += 1
+        time.sleep(0.005)
+    assert recorder.installed
+    scheduler.update(tick, READY, LqrContact.LEFT_FOOT, LqrContact.LEFT_FOOT)  # another
+    scheduler.bus_read(True)
+    scheduler.close()  # mid-read: the stopped designer is continued, told to leave, and ends
+    assert not process.is_alive() and process.exitcode == 0
