@@ -7,6 +7,11 @@ the same lock-step experiment, measured side by side.
                         the same devices, firmware, plant and controller, no wire, no pty
     MuJoCo alone        `mujoco.mj_step` on the emulated plant's own model(s), as many physics
                         steps as the run simulates: nothing but the physics (the limit)
+    bus alone           through the buses and in process, the bus without the loop: each tick a
+                        read and a write of the held goal, no controller, supervisor or log.
+                        Through the buses the host's own CPU per tick is measured too: the
+                        unmodified SDKs' work and our drivers', the floor of the host's side
+                        (`host_bound`: the factor it allows were the emulator and the loop free)
 
 real-time factor = simulated time / wall time of the loop (from its second tick: the first
 runs the start gate and turns torque on). The three are taken in turn, `rounds` times
@@ -25,7 +30,9 @@ from pathlib import Path
 from typing import Any
 
 import mujoco
+import numpy as np
 
+from drivers.joint_bus import JointBus
 from hil.bench.common import StartFailed, with_retries
 from hil.config import Config
 from hil.experiments import Experiment
@@ -37,7 +44,8 @@ from hil.wiring.in_process import in_process_bus
 from sim_backend.robots import build_hardware
 from sim_backend.spec import EmulatorSpec
 
-PATHS = ("buses", "in_process", "mujoco_alone")
+PATHS = ("buses", "in_process", "mujoco_alone", "buses_bus_alone", "in_process_bus_alone")
+BUS_ALONE_WARMUP_TICKS = 20
 DEFAULT_ROUNDS = 3
 
 
@@ -100,6 +108,51 @@ def run_in_process(
     return {"simulated_s": simulated_s, "real_time_factor": factor, "ending": result.ending.text}
 
 
+def run_bus_alone(config: Config, bus: JointBus, ticks: int) -> dict[str, Any]:
+    """Open `bus`, turn torque on holding the present position, then `ticks` times a read and
+    a write of that goal (after a few ticks' warm-up); torque off and closed on every exit."""
+    bus.open()
+    try:
+        goal = bus.read().motor_angle_rad.copy()
+        if not np.isfinite(goal).all():
+            raise StartFailed("an actuator did not answer the first read")
+        bus.enable()
+        try:
+            for _ in range(BUS_ALONE_WARMUP_TICKS):
+                bus.read()
+                bus.write(goal)
+            cpu_started, started = time.process_time(), time.perf_counter()
+            for _ in range(ticks):
+                bus.read()
+                bus.write(goal)
+            wall_s = time.perf_counter() - started
+            cpu_s = time.process_time() - cpu_started
+        finally:
+            bus.disable()
+    finally:
+        bus.close()
+    simulated_s = ticks * config.loop.period_s
+    return {
+        "simulated_s": simulated_s,
+        "real_time_factor": simulated_s / wall_s,
+        "host_cpu_s_per_tick": cpu_s / ticks,
+        "ending": "",
+    }
+
+
+def run_bus_alone_through_buses(
+    config: Config, experiment: Experiment, ticks: int
+) -> dict[str, Any]:
+    spec = emulator_spec(config, experiment=experiment, clock=EmulatorClock.LOCKSTEP)
+    with EmbeddedEmulator(spec) as emulator:
+        connection = Connection.from_endpoints(emulator.endpoints, config)
+        return run_bus_alone(config, make_bus(config, connection), ticks)
+
+
+def run_bus_alone_in_process(config: Config, experiment: Experiment, ticks: int) -> dict[str, Any]:
+    return run_bus_alone(config, in_process_bus(config, experiment), ticks)
+
+
 def physics_models(spec: EmulatorSpec) -> list[tuple[mujoco.MjModel, mujoco.MjData]]:
     """The MuJoCo model(s) the emulated hardware of `spec` steps, at its initial state: one
     for the humanoid, one per joint for the testbed."""
@@ -133,10 +186,11 @@ def bench_speed(
     rounds: int = DEFAULT_ROUNDS,
     say: Callable[[str], None] = lambda _text: None,
 ) -> dict[str, Any]:
-    """The three real-time factors, `rounds` times in turn; medians and ratios."""
+    """The real-time factors of `PATHS`, `rounds` times in turn; medians and ratios."""
     factors: dict[str, list[float]] = {path: [] for path in PATHS}
     endings: dict[str, str] = {}
     failures: list[str] = []
+    host_cpu_s: list[float] = []
     with tempfile.TemporaryDirectory(prefix="hil-bench-speed-") as tmp:
         for round_index in range(rounds):
             out = Path(tmp) / f"round{round_index}"
@@ -148,6 +202,10 @@ def bench_speed(
                     run_in_process, config, experiment, controller, ticks, out / "p"
                 ),
                 "mujoco_alone": partial(run_mujoco_alone, config, experiment, ticks),
+                "buses_bus_alone": partial(run_bus_alone_through_buses, config, experiment, ticks),
+                "in_process_bus_alone": partial(
+                    run_bus_alone_in_process, config, experiment, ticks
+                ),
             }
             for path, run in runs.items():
                 say(f"bench speed: round {round_index + 1} of {rounds}, {path} ...")
@@ -155,7 +213,10 @@ def bench_speed(
                 failures += failed
                 factors[path].append(record["real_time_factor"])
                 endings[path] = record["ending"]
+                if path == "buses_bus_alone":
+                    host_cpu_s.append(record["host_cpu_s_per_tick"])
     median = {path: statistics.median(values) for path, values in factors.items()}
+    host_cpu_median_s = statistics.median(host_cpu_s)
     return {
         "experiment": experiment.name,
         "controller": str(controller),
@@ -167,6 +228,11 @@ def bench_speed(
             path: median[path] / median["mujoco_alone"] for path in ("buses", "in_process")
         },
         "buses_over_in_process": median["buses"] / median["in_process"],
+        "bus_alone": {
+            "host_cpu_s_per_tick": host_cpu_median_s,
+            "host_cpu_s_per_tick_all": host_cpu_s,
+            "host_bound": config.loop.period_s / host_cpu_median_s,
+        },
         "endings": endings,
         "failed_starts": failures,
     }
@@ -174,6 +240,7 @@ def bench_speed(
 
 def speed_text(speed: dict[str, Any]) -> list[str]:
     factor, of_limit = speed["real_time_factor"], speed["of_mujoco_alone"]
+    alone = speed["bus_alone"]
     lines = [
         f"real-time factor of a lock-step {speed['experiment']} run with {speed['controller']}, "
         f"{speed['ticks']} ticks, median of {speed['rounds']} rounds taken in turn:",
@@ -183,6 +250,13 @@ def speed_text(speed: dict[str, Any]) -> list[str]:
         f"({of_limit['in_process']:.3f} of MuJoCo alone)",
         f"  MuJoCo alone (the physics) {factor['mujoco_alone']:8.2f} x",
         f"  through the buses / in process: {speed['buses_over_in_process']:.2f}",
+        "the bus alone (each tick a read and a write of the held goal; no controller, "
+        "supervisor or log):",
+        f"  through the emulated buses {factor['buses_bus_alone']:8.2f} x  "
+        f"(the host's own CPU {1e3 * alone['host_cpu_s_per_tick']:.3f} ms a tick: "
+        f"{alone['host_bound']:.2f} x at most, were the emulator and the loop free)",
+        f"  in process                 {factor['in_process_bus_alone']:8.2f} x  "
+        "(the emulated robot and its in-process bus)",
     ]
     for path, ending in speed["endings"].items():
         if ending and ending != "completed":
