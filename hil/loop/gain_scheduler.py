@@ -13,7 +13,8 @@ thread every 100 ms). A design runs in a worker process, never inside a tick's c
                 a new contact is requested `lead_ticks` before it and installed on the tick it
                 starts.
     wall clock  the same requests; a finished design is installed at the start of the first
-                tick after it is done (a tick never waits for it).
+                tick after it is done (a tick never waits for it). The design runs only while
+                the loop sleeps between ticks (`tick_active`).
 
 Designs are requested every `period_ticks` and at every contact change (the doubling solver of
 controller/lqr_designs.py: 1-6 ms for the lab's diagonal design, 5-30 ms for the closed chain on
@@ -255,6 +256,7 @@ class GainScheduler:
         self._requested_contact: object = None
         self._last_request_tick: int | None = None
         self._pending: _Request | None = None  # handed to the worker, not yet installed
+        self._tick_active = False  # (see tick_active)
         self._blas = threadpool_limits(limits=1, user_api="blas")
         fork = "fork" in multiprocessing.get_all_start_methods()
         self._worker = (_DesignProcess if fork else _DesignThread)(robot, designer)
@@ -283,15 +285,20 @@ class GainScheduler:
         link = np.array(link_angle_rad, dtype=float)
         self._pending = _Request(link, wanted, time.perf_counter(), tick + self.lead_ticks)
         self._worker.submit(link, wanted)
+        if self._tick_active:
+            self.tick_active(True)  # it starts once the tick is over
 
-    def bus_read(self, reading: bool) -> None:
-        """Wall clock: the loop starts (True) or has ended (False) the part of its tick that
-        waits for the bus. A design in progress is stopped meanwhile, so that it never runs
-        beside the bus's answers: a design every 100 ms beside the realtime emulated humanoid
-        made the bus read's p99 5.1-5.5 ms against 3.6-3.7 ms without (docs/realtime.md). In
-        lock-step nothing is stopped (its tick may wait for the design)."""
+    def tick_active(self, active: bool) -> None:
+        """Wall clock: the loop starts (True) or has ended (False) the active part of its tick
+        (the bus read, the compute, the write). A design in progress is stopped meanwhile and
+        runs while the loop sleeps until its next tick. Beside the bus's answers a design every
+        100 ms made the realtime humanoid's bus read p99 5.1-5.5 ms against 3.6-3.7 ms without;
+        beside the compute it took the loop's CPU for a scheduler slice, ~6 ms ticks every
+        100 ms on a slower day (docs/realtime.md). In lock-step nothing is stopped (its tick
+        may wait for the design)."""
+        self._tick_active = active
         if self.wall_clock and isinstance(self._worker, _DesignProcess):
-            self._worker.pause(reading and self._pending is not None)
+            self._worker.pause(active and self._pending is not None)
 
     def close(self) -> None:
         self._worker.close()

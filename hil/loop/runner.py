@@ -234,10 +234,18 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             self.ending = RunEnding(Termination.SAFETY_STOP, f"{first.cause} ({first.action})")
 
     def _cycle(self, tick: Tick) -> None:
-        k = tick.index
         scheduler = self.scheduler
-        if scheduler is not None:
-            scheduler.bus_read(True)
+        if scheduler is None:
+            self._active_cycle(tick)
+            return
+        scheduler.tick_active(True)
+        try:
+            self._active_cycle(tick)
+        finally:
+            scheduler.tick_active(False)
+
+    def _active_cycle(self, tick: Tick) -> None:
+        k = tick.index
         t_read = time.perf_counter()
         self.bus.start_read()
         try:  # the last tick's rows, while the answers travel
@@ -245,8 +253,6 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         finally:  # whatever happened, the answers are collected: no transaction left open
             sample = self.bus.finish_read()
         t_compute = time.perf_counter()
-        if scheduler is not None:
-            scheduler.bus_read(False)
         log_s = wait_log_s if self._rows_in_wait else self._handed_over_s
         if k == 0:
             sample = self._start(sample)

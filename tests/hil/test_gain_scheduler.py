@@ -209,35 +209,42 @@ def _process_state(pid: int) -> str:
         return stat.read().rsplit(")", 1)[1].split()[0]
 
 
+def _stopped_soon(pid: int) -> bool:
+    """Whether the process is stopped within 0.5 s (a signal acts asynchronously)."""
+    deadline = time.monotonic() + 0.5
+    while _process_state(pid) != "T":
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.005)
+    return True
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
 @pytest.mark.parametrize("wall_clock", [False, True], ids=["lockstep", "wall-clock"])
-def test_a_design_waits_while_the_wall_clock_loop_reads_the_bus(wall_clock: bool) -> None:
-    """On the wall clock a design in progress is stopped while the loop waits for the bus's
-    answers and goes on after them (it never runs beside the read); in lock-step it is never
-    stopped. The design still arrives, and a scheduler closed mid-read ends its designer."""
+def test_a_design_waits_while_the_wall_clock_loop_is_in_its_tick(wall_clock: bool) -> None:
+    """On the wall clock a design in progress is stopped while the loop is in its tick (bus
+    read, compute, write) and goes on while the loop sleeps (it never runs beside the tick); in
+    lock-step it is never stopped. The design still arrives, and a scheduler closed mid-tick
+    ends its designer."""
     scheduler, recorder = _scheduler(wall_clock=wall_clock)
     process = scheduler._worker._process  # type: ignore[attr-defined]
     scheduler.update(0, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
     assert scheduler._pending is not None  # type: ignore[attr-defined]
-    scheduler.bus_read(True)
-    stopped = _process_state(process.pid) == "T"
-    deadline = time.monotonic() + 0.5
-    while not stopped and time.monotonic() < deadline:  # (the signal is asynchronous)
-        time.sleep(0.005)
-        stopped = _process_state(process.pid) == "T"
-    assert stopped is wall_clock
-    scheduler.bus_read(False)
+    scheduler.tick_active(True)
+    assert _stopped_soon(process.pid) is wall_clock
+    scheduler.tick_active(False)
     time.sleep(0.05)
     assert _process_state(process.pid) != "T"
     tick, deadline = 1, time.monotonic() + 20.0
     while not recorder.installed and time.monotonic() < deadline:
-        scheduler.bus_read(True)
-        scheduler.bus_read(False)
+        scheduler.tick_active(True)
+        scheduler.tick_active(False)
         scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
         tick += 1
         time.sleep(0.005)
     assert recorder.installed
-    scheduler.update(tick, READY, LqrContact.LEFT_FOOT, LqrContact.LEFT_FOOT)  # another
-    scheduler.bus_read(True)
-    scheduler.close()  # mid-read: the stopped designer is continued, told to leave, and ends
+    scheduler.tick_active(True)
+    scheduler.update(tick, READY, LqrContact.LEFT_FOOT, LqrContact.LEFT_FOOT)  # mid-tick
+    assert _stopped_soon(process.pid) is wall_clock  # it starts when the tick is over
+    scheduler.close()  # mid-tick: the stopped designer is continued, told to leave, and ends
     assert not process.is_alive() and process.exitcode == 0
