@@ -82,6 +82,7 @@ def _new_ray_processes(before: set[str]) -> set[str]:
 
 
 @pytest.mark.slow
+@pytest.mark.ray
 @pytest.mark.timeout(600)
 @pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
 def test_a_stopped_sweep_then_the_same_command_resumes_without_repeating(

@@ -34,6 +34,7 @@ def _lines(path: Path) -> list[str]:
 
 
 @pytest.mark.slow
+@pytest.mark.ray
 @pytest.mark.timeout(600)
 def test_a_tiny_sweep_resumes_without_repeating(tmp_path: Path) -> None:
     ray = pytest.importorskip("ray")
@@ -85,6 +86,7 @@ def test_hil_sweep_list_names_the_shipped_specs(capsys: pytest.CaptureFixture[st
 
 
 @pytest.mark.slow
+@pytest.mark.ray
 @pytest.mark.timeout(600)
 def test_the_sweep_bench_measures_both_worker_counts_and_the_overhead() -> None:
     pytest.importorskip("ray")
