@@ -11,9 +11,8 @@ Clocks:
 - lockstep: the plant advances exactly one loop period per CAN SYNC it receives (the first SYNC
   samples t = 0). Before stepping, the loop drains the Dynamixel line, so the goals the host
   wrote before that SYNC act over the period that follows it: a run is deterministic whatever the
-  machine's load. A Dynamixel read is answered only after the SYNC sent before it has stepped
-  the plant (reads are held until the CAN side is served), and a read already there when the
-  plant has stepped is answered before the SYNC's TPDOs go out.
+  machine's load. The host must read the Dynamixel state only after the SYNC's TPDOs arrived
+  (our driver does).
 - realtime: the plant follows the wall clock (1 ms physics steps), the Dynamixel line models wire
   time and Return Delay Time, nothing waits for SYNC: the emulated testbed behaves like the
   hardware, for ROBOTIS's SDK or any other client.
@@ -203,19 +202,6 @@ class Emulator:
                 self.testbed.advance(self.spec.period_s)
         self.sync_count += 1
         self._apply_faults()
-        if not self.realtime:
-            self._answer_reads_first()
-
-    def _answer_reads_first(self) -> None:
-        """Lock-step: answer the sync read that followed this SYNC now, before the SYNC's
-        TPDOs are built and sent. The host collects the actuators' replies first, so it parses
-        the status packets while this process formats and writes the CAN frames, instead of
-        each waiting for the other (~8 % of a humanoid tick). Same state, same bytes on each
-        bus: only the order of the two writes changes. A read not here yet is answered as
-        before, in the loop's next turn."""
-        self.line.drain()
-        if self.line.holds_reads:
-            self.line.release_held_reads()
 
     def _follow_wall_clock(self) -> float:
         """Step the plant up to the wall clock; returns when the next step is due."""
