@@ -26,6 +26,9 @@ import os, signal, sys
 import hil.sweep.engine as engine
 from hil.cli import main
 signum = getattr(signal, sys.argv[1])
+# as from a terminal: a process started in the background by a non-interactive shell (a CI
+# script's `cmd &`) inherits SIGINT ignored, and Python then keeps it ignored
+signal.signal(signal.SIGINT, signal.default_int_handler)
 tick = engine.Progress.tick
 def tick_then_signal(self, row, values):
     tick(self, row, values)
