@@ -14,7 +14,7 @@ the same lock-step experiment, measured side by side.
                         (`host_bound`: the factor it allows were the emulator and the loop free)
 
 real-time factor = simulated time / wall time of the loop (from its second tick: the first
-runs the start gate and turns torque on). The three are taken in turn, `rounds` times
+runs the start gate and turns torque on). The paths are taken in turn, `rounds` times
 (A B C A B C ...), so a burst of load on this shared machine falls on all of them alike, and
 the report gives each one's median and their ratios (through the buses / MuJoCo alone etc.).
 """
