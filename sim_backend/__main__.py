@@ -7,6 +7,9 @@ importing the host's packages (the CLI's imports cost seconds of every run's sta
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import sys
 from pathlib import Path
 
 from sim_backend.server import serve_spec_file
@@ -19,4 +22,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    status = main()
+    # Everything is released by now (the ptys closed, the last line flushed): skip the
+    # interpreter's teardown of numpy, MuJoCo and the rest, ~50 ms of every run's end.
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # nobody reads any more: fine
+            stream.flush()
+    os._exit(status)

@@ -26,6 +26,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import os
 import select
 import signal
 import sys
@@ -63,6 +64,7 @@ __all__ = [
 ]
 
 SYNC_COB_ID = 0x080
+IDLE_WAIT_S = 0.05  # the longest the loop sleeps in select() with nothing due (stop() wakes it)
 MAX_PHYSICS_STEPS_PER_TURN = 2  # realtime: physics between two looks at the buses (1 ms steps)
 
 
@@ -93,6 +95,11 @@ class Emulator:
         self._node_faults_changed = False
         self.fault_schedule = FaultSchedule(spec.scenario.faults, len(spec.joints))
         self._running = False
+        # stop() (a signal handler) writes here: the loop's select wakes at once instead of at
+        # its next timeout (up to 50 ms, which every run's end waited for)
+        self._wake_read, self._wake_write = os.pipe()
+        os.set_blocking(self._wake_read, False)
+        os.set_blocking(self._wake_write, False)
         self._wall_origin = time.monotonic()
         self._step_cost_s = 0.0  # realtime: what a physics step takes here (a running mean)
 
@@ -138,15 +145,17 @@ class Emulator:
     # --- the event loop --------------------------------------------------------------------
     def stop(self, *_: object) -> None:
         self._running = False
+        with contextlib.suppress(OSError):  # full (a stop is pending already) or closed
+            os.write(self._wake_write, b"\0")
 
     def run(self) -> None:
         self._running = True
         line, slcan = self.line, self.slcan
-        fds = [slcan.fileno(), line.fileno()]
+        fds = [slcan.fileno(), line.fileno(), self._wake_read]
         next_physics = time.monotonic()
         while self._running:
             now = time.monotonic()
-            timeout = 0.05
+            timeout = IDLE_WAIT_S
             due = line.next_due_s()
             if due is not None:
                 timeout = min(timeout, max(0.0, due - now))
@@ -159,6 +168,9 @@ class Emulator:
                 readable, _, _ = select.select(fds, [], [], timeout)
             except InterruptedError:
                 continue
+            if self._wake_read in readable:
+                with contextlib.suppress(BlockingIOError):
+                    os.read(self._wake_read, 64)
             # CAN first: a SYNC must step the plant before a later Dynamixel read is answered.
             if slcan.fileno() in readable:
                 self._on_host_frames(slcan.read_frames(flush=False))
@@ -268,6 +280,9 @@ class Emulator:
     def close(self) -> None:
         self.line.close()
         self.slcan.close()
+        for fd in (self._wake_read, self._wake_write):
+            with contextlib.suppress(OSError):
+                os.close(fd)
 
 
 def serve_spec_file(path: str) -> int:
