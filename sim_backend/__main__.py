@@ -1,8 +1,9 @@
 """`python -m sim_backend --spec-file SPEC.json`: serve the emulated hardware of a spec (as
 `sim_backend.spec_json.spec_to_json` wrote it) on its buses until SIGINT / SIGTERM.
 
-What `hil run` starts for its embedded emulator: the same server as `hil emulate`, without
-importing the host's packages (the CLI's imports cost seconds of every run's start-up)."""
+`python -m sim_backend --fork-server FD`: the fork server `hil run` starts its embedded
+emulators from (sim_backend/fork_server.py): each one the same server as `hil emulate`, without
+importing the host's packages or, after the first, even sim_backend's."""
 
 from __future__ import annotations
 
@@ -17,8 +18,17 @@ from sim_backend.server import serve_spec_file
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m sim_backend", description=__doc__)
-    parser.add_argument("--spec-file", type=Path, required=True, help="the spec, as JSON")
-    return serve_spec_file(str(parser.parse_args(argv).spec_file))
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument("--spec-file", type=Path, help="the spec, as JSON")
+    what.add_argument(
+        "--fork-server", type=int, metavar="FD", help="fork emulators on requests on socket FD"
+    )
+    args = parser.parse_args(argv)
+    if args.fork_server is not None:
+        from sim_backend.fork_server import serve_forks
+
+        return serve_forks(args.fork_server)
+    return serve_spec_file(str(args.spec_file))
 
 
 if __name__ == "__main__":

@@ -2,9 +2,10 @@
 
 `emulator_spec()` turns the hardware description (IDs, node IDs, resolutions, mountings, baud)
 plus the [emulator] section and an experiment's world into what `sim_backend` builds.
-`EmbeddedEmulator` runs `hil emulate` as a child process - the very command a user runs in
-another terminal - and reads the endpoints from its first line, so the embedded default and the
-cross-process setup take the same path over the same wire.
+`EmbeddedEmulator` runs the server of `hil emulate` - what a user runs in another terminal - in
+a process of its own (forked from sim_backend's fork server, which has imported it once) and
+reads the endpoints from its first line, so the embedded default and the cross-process setup
+take the same path over the same wire.
 """
 
 from __future__ import annotations
@@ -12,13 +13,11 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import signal
-import subprocess
-import sys
+import select
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -26,6 +25,7 @@ from hil.config import Config, ConfigError, robot_description_text
 from hil.experiments import Experiment
 from hil.vocabulary import EmulatorClock
 from hil.wiring.hardware import encoder_counts_per_rev
+from sim_backend.fork_server import ForkedEmulator, ForkServerError, fork_server
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import FaultEvent, PelvisPushEvent, PushEvent, Scenario
 from sim_backend.servo import H54ServoParams, ServoCascade
@@ -235,19 +235,22 @@ class EmulatorStartError(RuntimeError):
 
 
 class EmbeddedEmulator:
-    """`hil emulate` in a child process; `endpoints` is its first stdout line."""
+    """`hil emulate` in a process of its own, forked from this process's fork server
+    (sim_backend/fork_server.py: imported once, each emulator in milliseconds); `endpoints` is
+    its first stdout line, `fault_counts` its last once stopped."""
 
     def __init__(self, spec: EmulatorSpec) -> None:
         self.spec = spec
-        self.process: subprocess.Popen[str] | None = None
+        self.process: ForkedEmulator | None = None
         self.endpoints: dict[str, Any] = {}
         self._spec_file: Path | None = None
+        self._stdout: TextIO | None = None
         self._stderr: Any = None
         # The emulator's last line after it stopped: how often each injected fault acted.
         self.fault_counts: dict[str, Any] = {}
 
     def start(self) -> dict[str, Any]:
-        """Start the child and read its endpoints; on any failure or interrupt, stop it."""
+        """Start the emulator and read its endpoints; on any failure or interrupt, stop it."""
         try:
             return self._start()
         except BaseException:
@@ -261,17 +264,14 @@ class EmbeddedEmulator:
             f.write(spec_to_json(self.spec))
         # stderr goes to a file: a pipe nobody reads could fill up and stall the emulator
         self._stderr = tempfile.TemporaryFile(mode="w+", prefix="hil-emulator-stderr-")  # noqa: SIM115
-        self.process = subprocess.Popen(
-            # the emulator's own entry point: it imports sim_backend, not the whole of hil; -P:
-            # not from the working directory (`-m` would put it first on the import path, and a
-            # folder there named like one of ours would be imported instead)
-            [sys.executable, "-P", "-m", "sim_backend", "--spec-file", name],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=self._stderr,
-            text=True,
-            start_new_session=True,  # a Ctrl-C in the terminal reaches us, and we stop it
-        )
+        stdout_read, stdout_write = os.pipe()
+        self._stdout = os.fdopen(stdout_read, "r")
+        try:
+            self.process = fork_server().start(name, stdout_write, self._stderr.fileno())
+        except ForkServerError as exc:
+            raise EmulatorStartError(str(exc)) from exc
+        finally:
+            os.close(stdout_write)  # the emulator's copy is the one left: EOF when it ends
         line = self._read_first_line()
         try:
             self.endpoints = json.loads(line)
@@ -283,17 +283,14 @@ class EmbeddedEmulator:
         return self.endpoints
 
     def _read_first_line(self) -> str:
-        assert self.process is not None and self.process.stdout is not None
-        import selectors
-
-        selector = selectors.DefaultSelector()
-        selector.register(self.process.stdout, selectors.EVENT_READ)
-        if not selector.select(STARTUP_TIMEOUT_S):
+        assert self.process is not None and self._stdout is not None
+        readable, _, _ = select.select([self._stdout], [], [], STARTUP_TIMEOUT_S)
+        if not readable:
             self.stop()
             raise EmulatorStartError(f"the emulator did not start within {STARTUP_TIMEOUT_S} s")
-        line = self.process.stdout.readline()
+        line = self._stdout.readline()
         if not line:
-            self.process.wait(timeout=5)
+            self.process.wait(5.0)
             self._stderr.seek(0)
             err = self._stderr.read()
             self.stop()
@@ -302,18 +299,18 @@ class EmbeddedEmulator:
 
     def stop(self) -> None:
         process = self.process
-        if process is not None and process.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                process.send_signal(signal.SIGTERM)
-            try:
-                process.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
-        if process is not None and process.stdout is not None:
+        if process is not None:
+            if process.running():
+                process.terminate()
+                if not process.wait(5.0):
+                    process.kill()
+                    process.wait(5.0)
+            process.close()
+        if self._stdout is not None:
             with contextlib.suppress(OSError, ValueError):
-                self.fault_counts = _fault_counts(process.stdout.read())
-            process.stdout.close()
+                self.fault_counts = _fault_counts(self._stdout.read())
+            self._stdout.close()
+            self._stdout = None
         if getattr(self, "_stderr", None) is not None:
             self._stderr.close()
             self._stderr = None
