@@ -94,7 +94,9 @@ class Emulator:
         self.sync_count = 0
         self._node_faults_changed = False
         self.fault_schedule = FaultSchedule(spec.scenario.faults, len(spec.joints))
-        self._running = False
+        # False once stop() was called, even before run(): a host's SIGTERM may come right
+        # after the endpoints line, before the loop starts, and must end it all the same
+        self._running = True
         # stop() (a signal handler) writes here: the loop's select wakes at once instead of at
         # its next timeout (up to 50 ms, which every run's end waited for)
         self._wake_read, self._wake_write = os.pipe()
@@ -149,7 +151,6 @@ class Emulator:
             os.write(self._wake_write, b"\0")
 
     def run(self) -> None:
-        self._running = True
         line, slcan = self.line, self.slcan
         fds = [slcan.fileno(), line.fileno(), self._wake_read]
         next_physics = time.monotonic()
