@@ -270,6 +270,8 @@ def test_garbage_never_corrupts_a_control_table_and_is_followed_by_exact_answers
     for device in chain.devices:
         if device.item("Status Return Level") != 2 or device.item("ID") not in IDS:
             return  # a valid WRITE in the stream changed how it answers: nothing left to check
+    if len({device.item("ID") for device in chain.devices}) < len(chain.devices):
+        return  # a valid WRITE gave two devices one ID: both answer it, as on a real chain
     write = build_instruction_packet(
         1, Instruction.WRITE, LED_RED.to_bytes(2, "little") + bytes((led,))
     )
