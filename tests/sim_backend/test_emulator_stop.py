@@ -27,25 +27,29 @@ def _idle_emulator() -> Emulator:
     return Emulator(EmulatorSpec(joints=(joint,), heartbeat_ms=0))
 
 
-def _running_emulator() -> tuple[Emulator, threading.Thread]:
+def _loop_ended_after_a_stop(*, before_run: bool) -> bool:
+    """Run an idle emulator's loop in a thread and stop it, before it starts or once it waits
+    in select(); True if the loop ended within half the (long) idle wait."""
     emulator = _idle_emulator()
     thread = threading.Thread(target=emulator.run, daemon=True)
-    thread.start()
-    time.sleep(0.2)  # in its select() by now: nothing is due on an idle bus
-    return emulator, thread
-
-
-def test_stop_wakes_the_loop_out_of_its_idle_wait(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(server, "IDLE_WAIT_S", LONG_IDLE_WAIT_S)
-    emulator, thread = _running_emulator()
     try:
-        emulator.stop()
+        if before_run:
+            emulator.stop()
+        thread.start()
+        if not before_run:
+            time.sleep(0.2)  # in its select() by now: nothing is due on an idle bus
+            emulator.stop()
         thread.join(LONG_IDLE_WAIT_S / 2)
-        assert not thread.is_alive(), "the loop slept through stop() to its idle timeout"
+        return not thread.is_alive()
     finally:
         emulator.stop()
         thread.join(LONG_IDLE_WAIT_S + 5)
         emulator.close()
+
+
+def test_stop_wakes_the_loop_out_of_its_idle_wait(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(server, "IDLE_WAIT_S", LONG_IDLE_WAIT_S)
+    assert _loop_ended_after_a_stop(before_run=False), "the loop slept through stop()"
 
 
 def test_a_stop_before_run_ends_it_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -53,14 +57,4 @@ def test_a_stop_before_run_ends_it_at_once(monkeypatch: pytest.MonkeyPatch) -> N
     loop: run() must not start as if nothing had been asked (the host then waited 5 s and
     killed the emulator, and its fault counts were lost)."""
     monkeypatch.setattr(server, "IDLE_WAIT_S", LONG_IDLE_WAIT_S)
-    emulator = _idle_emulator()
-    try:
-        emulator.stop()
-        thread = threading.Thread(target=emulator.run, daemon=True)
-        thread.start()
-        thread.join(LONG_IDLE_WAIT_S / 2)
-        assert not thread.is_alive(), "a stop before run() was forgotten"
-    finally:
-        emulator.stop()
-        thread.join(LONG_IDLE_WAIT_S + 5)
-        emulator.close()
+    assert _loop_ended_after_a_stop(before_run=True), "a stop before run() was forgotten"
