@@ -287,10 +287,10 @@ class Emulator:
 
 
 def serve_spec_file(path: str) -> int:
-    """`python -m sim_backend --spec-file PATH` (how `hil run` starts its embedded emulator):
-    serve the spec `spec_to_json` wrote, loading nothing but sim_backend (the CLI's imports cost
-    seconds of every run's start-up). Exit status as the `hil` command's: 0, or 1 with the
-    reason."""
+    """`python -m sim_backend --spec-file PATH`, and each emulator the fork server starts for
+    `hil run` (sim_backend/fork_server.py): serve the spec `spec_to_json` wrote, loading nothing
+    but sim_backend (the CLI's imports cost seconds of every run's start-up). Exit status as
+    the `hil` command's: 0, or 1 with the reason."""
     from sim_backend.spec_json import spec_from_json
 
     try:
