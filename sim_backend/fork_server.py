@@ -59,6 +59,7 @@ def serve_forks(control_fd: int) -> int:
     for ending in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(ending, signal.SIG_IGN)  # the host ends the server, by closing `control`
     signal.signal(signal.SIGCHLD, signal.SIG_IGN)  # the kernel reaps the emulators: no zombies
+    server_pid = os.getpid()
     control.sendall(b"ready")
     while True:
         try:
@@ -80,7 +81,7 @@ def serve_forks(control_fd: int) -> int:
             control.sendall(f"error: fork failed: {exc}".encode())
             continue
         if pid == 0:
-            _be_the_emulator(control, request.decode(), fds[0], fds[1])
+            _be_the_emulator(control, server_pid, request.decode(), fds[0], fds[1])
         for fd in fds:
             os.close(fd)
         try:
@@ -95,21 +96,22 @@ def serve_forks(control_fd: int) -> int:
 
 
 def _be_the_emulator(
-    control: socket.socket, spec_path: str, stdout_fd: int, stderr_fd: int
+    control: socket.socket, server_pid: int, spec_path: str, stdout_fd: int, stderr_fd: int
 ) -> NoReturn:
     status = 1
     try:
-        server_pid = os.getppid()
         control.close()
-        os.setsid()
-        _end_with_parent(server_pid)
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGCHLD):
-            signal.signal(sig, signal.SIG_DFL)
-        os.dup2(stdout_fd, 1)
+        os.dup2(stdout_fd, 1)  # first: whatever goes wrong next is on the emulator's stderr
         os.dup2(stderr_fd, 2)
         os.close(stdout_fd)
         os.close(stderr_fd)
+        os.setsid()
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGCHLD):
+            signal.signal(sig, signal.SIG_DFL)
+        _end_with_parent(server_pid)
         status = serve_spec_file(spec_path)
+    except BaseException as exc:  # noqa: BLE001 - the reason, as `hil emulate` gives it
+        print(f"hil emulate: {type(exc).__name__}: {exc}", file=sys.stderr)
     finally:
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(OSError, ValueError):
