@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import enum
 import math
+import re
 from dataclasses import dataclass
 
 from controller import COMPOSITION_READINGS, ControllerKind
@@ -16,6 +17,7 @@ from controller.gravity import GcCompliance
 __all__ = [
     "ControllerChoice",
     "ControllerKind",
+    "ControllerRef",
     "EmulatorClock",
     "NoticeKind",
     "Reaction",
@@ -50,6 +52,7 @@ class SafetyCause(enum.StrEnum):
     GOAL_SATURATED = "goal_saturated"
     GAIN_OUT_OF_RANGE = "gain_out_of_range"
     OVERRUN = "overrun"
+    CONTROLLER_FAULT = "controller_fault"  # the controller raised or broke its contract
 
     @property
     def config_key(self) -> str:
@@ -100,38 +103,124 @@ class EmulatorClock(enum.StrEnum):
 
 
 @dataclass(frozen=True)
-class ControllerChoice:
-    """A controller to run: which one, its DOB gain, and (optionally) its reading of (25) and
-    the compliance its gravity compensator offsets.
+class ControllerRef:
+    """Which controller a run uses, as the record names it and as a worker process finds it
+    again (`hil.controllers.load_controller`); made by the registry (`hil.controllers.resolve`)
+    for plug-ins, and here for the paper's four.
 
-    kdist counts only for the DOB controller (it is 0 for the others); reading None means the
-    configuration's `[controller] composition`, gc_compliance None its `gc_compliance` (the
+    name        what the record calls it: "gc+lqr+dob", or a plug-in's class name "PdGravity"
+    spec        where it is loaded from: a registry name ("pid"), "path/to/file.py:Class",
+                "package.module:Class"
+    paper       which of the paper's four controllers it is (its comparisons' relations are
+                about those), or None
+    uses_kdist  the DOB's gain Kdist applies (--kdist, [safety] max_kdist, Kdist schedules)
+    has_composition  a reading of the paper's (25) applies (--composition)
+    has_gravity_compensator  the compliance (8) of a gravity compensator applies
+    needs_link_angle  it reads the link encoders (refused on a robot without them)
+    """
+
+    name: str
+    spec: str
+    paper: ControllerKind | None = None
+    uses_kdist: bool = False
+    has_composition: bool = False
+    has_gravity_compensator: bool = False
+    needs_link_angle: bool = True
+
+    @classmethod
+    def of_paper(cls, kind: ControllerKind) -> ControllerRef:
+        """One of the paper's four controllers (what each has: `ControllerKind`)."""
+        kind = ControllerKind(kind)
+        return cls(
+            name=kind.value,
+            spec=kind.value,
+            paper=kind,
+            uses_kdist=kind.has_dob,
+            has_composition=kind.has_lqr,
+            has_gravity_compensator=kind is not ControllerKind.PID,
+            needs_link_angle=kind.has_lqr,
+        )
+
+    @property
+    def built_in(self) -> bool:
+        return ":" not in self.spec
+
+    @property
+    def dir_name(self) -> str:
+        """The controller's part of a run directory's name: 'gc-lqr-dob', 'pd-gravity'."""
+        text = self.name.replace("+", "-")
+        text = re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "-", text).lower()
+        return re.sub(r"[^a-z0-9.-]+", "-", text).strip("-") or "controller"
+
+    def __str__(self) -> str:
+        return self.name
+
+
+@dataclass(frozen=True)
+class ControllerChoice:
+    """A controller to run: which one (`controller`: one of the paper's four by its
+    `ControllerKind`, or any `ControllerRef`), its DOB gain, and (optionally) its reading of
+    (25) and the compliance its gravity compensator offsets.
+
+    kdist counts only for a controller with a DOB (it is 0 for the others); reading None means
+    the configuration's `[controller] composition`, gc_compliance None its `gc_compliance` (the
     comparisons run GC once more with the other reading, "gear": the paper's literal K^-1).
     """
 
-    kind: ControllerKind
+    controller: ControllerRef | ControllerKind | str
     kdist: float = 0.0
     reading: str | None = None
     gc_compliance: GcCompliance | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "kind", ControllerKind(self.kind))
-        if not self.kind.has_dob:
+        if not isinstance(self.controller, ControllerRef):
+            try:
+                kind = ControllerKind(self.controller)
+            except ValueError:
+                raise ValueError(
+                    f"{self.controller!r} is not one of the paper's controllers "
+                    f"{[k.value for k in ControllerKind]}: a plug-in's ControllerRef comes from "
+                    "hil.controllers.resolve"
+                ) from None
+            object.__setattr__(self, "controller", ControllerRef.of_paper(kind))
+        ref = self.ref
+        if not ref.uses_kdist:
             object.__setattr__(self, "kdist", 0.0)
         if not (math.isfinite(self.kdist) and self.kdist >= 0):
             raise ValueError(f"kdist must be finite and >= 0, got {self.kdist}")
         if self.reading is not None and self.reading not in COMPOSITION_READINGS:
             raise ValueError(f"reading must be one of {COMPOSITION_READINGS}, got {self.reading!r}")
         if self.gc_compliance is not None:
-            if self.kind is ControllerKind.PID:
-                raise ValueError("pid has no gravity compensator: gc_compliance does not apply")
+            if not ref.has_gravity_compensator:
+                raise ValueError(
+                    f"{ref.name} has no gravity compensator: gc_compliance does not apply"
+                )
             object.__setattr__(self, "gc_compliance", GcCompliance(self.gc_compliance))
+
+    @property
+    def ref(self) -> ControllerRef:
+        assert isinstance(self.controller, ControllerRef)  # (made one by __post_init__)
+        return self.controller
+
+    @property
+    def kind(self) -> ControllerKind | None:
+        """Which of the paper's four controllers this is (None: another one)."""
+        return self.ref.paper
+
+    @property
+    def name(self) -> str:
+        return self.ref.name
+
+    @property
+    def uses_kdist(self) -> bool:
+        return self.ref.uses_kdist
 
     @property
     def label(self) -> str:
         """'gc+lqr+dob (Kdist 1)', with ', literal (25)' when a reading is named and ', gear
         (8)' when the compliance is."""
-        label = f"{self.kind} (Kdist {self.kdist:g})" if self.kind.has_dob else str(self.kind)
+        name = self.ref.name
+        label = f"{name} (Kdist {self.kdist:g})" if self.uses_kdist else name
         if self.reading:
             label += f", {self.reading} (25)"
         return f"{label}, {self.gc_compliance} (8)" if self.gc_compliance else label
@@ -139,15 +228,15 @@ class ControllerChoice:
     @property
     def dir_name(self) -> str:
         """'gc-lqr-dob-k1-literal': a directory name for a run of this controller."""
-        name = self.kind.value.replace("+", "-")
-        if self.kind.has_dob:
+        name = self.ref.dir_name
+        if self.uses_kdist:
             name += f"-k{self.kdist:g}"
         if self.reading:
             name += f"-{self.reading}"
         return f"{name}-{self.gc_compliance}" if self.gc_compliance else name
 
     def with_reading(self, reading: str | None) -> ControllerChoice:
-        return ControllerChoice(self.kind, self.kdist, reading, self.gc_compliance)
+        return ControllerChoice(self.controller, self.kdist, reading, self.gc_compliance)
 
 
 @dataclass(frozen=True)

@@ -31,9 +31,9 @@ from controller import ControllerKind, TrackingGain, design_discrete_tracking_lq
 from controller.model import validate_sm
 from drivers.timing import DurationStats as Distribution
 from hil.config import Config
+from hil.controllers.robot_model import HumanoidLegs
 from hil.experiments import STAND
 from hil.loop import build_controller, robot_model
-from hil.loop.robot_model import HumanoidLegs
 from hil.vocabulary import ControllerChoice
 
 POSTURE_STEP_RAD = 0.001

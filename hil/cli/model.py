@@ -24,7 +24,7 @@ from controller import GcCompliance
 from hil.cli.common import checked_config
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config
-from hil.loop.controller_factory import gc_compliance, model_figures
+from hil.controllers.paper_factory import gc_compliance, model_figures
 from hil.wiring.emulation import emulated_joint_stiffness
 
 COLUMNS = (

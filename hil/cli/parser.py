@@ -62,8 +62,10 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     run.add_argument(
         "--controller",
         default=None,
-        choices=list(CONTROLLER_NAMES),
-        help="default: the config's [controller] name",
+        metavar="NAME|FILE.py:CLASS|MODULE:CLASS",
+        help=f"one of {', '.join(CONTROLLER_NAMES)} (or an installed package's), or your own: "
+        "path/to/file.py:Class or package.module:Class (hil/controllers/contract.py; its "
+        "parameters from [controller.params]); default: the config's [controller] name",
     )
     run.add_argument("--kdist", type=float, help="DOB gain Kdist (default: the config's)")
     run.add_argument(

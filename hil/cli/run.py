@@ -12,6 +12,8 @@ from pathlib import Path
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError, robot_of
+from hil.controllers import ControllerLoadError, controller_params, resolve
+from hil.controllers.preflight import preflight
 from hil.experiments import Experiment, get_experiment
 from hil.loop import StopFlag, duration_problem
 from hil.output.channels import MessageSink
@@ -138,12 +140,20 @@ def _check_timeline(args: argparse.Namespace, faults: tuple, overruns: tuple) ->
 
 
 def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) -> ControllerChoice:
-    """The controller of a single run; an open-loop experiment (identify) has none: the
-    actuator's own position control follows its goals, which is what `pid` names."""
+    """The controller of a single run (a registry name or a plug-in, resolved and its
+    parameters checked now); an open-loop experiment (identify) has none: the actuator's own
+    position control follows its goals, which is what `pid` names."""
     if not experiment.open_loop:
-        name = args.controller or config.controller.name
-        choice = ControllerChoice(name, config.controller.kdist)
+        given = "--controller" if args.controller else f"{config.source} [controller] name"
+        spec = args.controller or config.controller.name
+        try:
+            choice = ControllerChoice(resolve(spec), config.controller.kdist)
+            controller_params(choice.ref, choice, config.controller.params)
+        except ControllerLoadError as exc:
+            raise ConfigError(f"{given}: {exc}") from None
         _check_choice(args, config, choice)
+        if not choice.ref.built_in:
+            _preflight(config, experiment, choice, given)
         return choice
     if args.controller not in (None, str(ControllerKind.PID)) or args.kdist is not None:
         raise ConfigError(
@@ -153,21 +163,30 @@ def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) ->
     return ControllerChoice(ControllerKind.PID)
 
 
+def _preflight(
+    config: Config, experiment: Experiment, choice: ControllerChoice, given: str
+) -> None:
+    """A plug-in tried on a copy before anything opens (hil/controllers/preflight.py)."""
+    problem = preflight(config, experiment, choice)
+    if problem is not None:
+        raise ConfigError(f"{given} {choice.ref.spec.removeprefix('file:')}: {problem}")
+
+
 def _check_choice(args: argparse.Namespace, config: Config, choice: ControllerChoice) -> None:
     """What the controller would ignore, or the supervisor refuse at the first tick with torque
     on (gain_out_of_range), judged now."""
-    kind = choice.kind
-    if args.kdist is not None and not kind.has_dob:
+    name = choice.name
+    if args.kdist is not None and not choice.uses_kdist:
         raise ConfigError(
-            f"--kdist is the DOB's gain: {kind} has no DOB (give a controller with one, e.g. "
+            f"--kdist is the DOB's gain: {name} has no DOB (give a controller with one, e.g. "
             f"--controller {ControllerKind.GC_LQR_DOB}, or drop --kdist)"
         )
-    if args.composition is not None and not kind.has_lqr:
+    if args.composition is not None and not choice.ref.has_composition:
         raise ConfigError(
-            f"--composition is a reading of (25), the LQR's composition: {kind} has no LQR"
+            f"--composition is a reading of (25), the LQR's composition: {name} has no LQR"
         )
     max_kdist = config.safety.max_kdist
-    if kind.has_dob and choice.kdist > max_kdist:
+    if choice.uses_kdist and choice.kdist > max_kdist:
         given = "--kdist" if args.kdist is not None else f"{config.source} [controller] kdist"
         raise ConfigError(
             f"{given} = {choice.kdist:g} is above [safety] max_kdist = {max_kdist:g}, beyond the "

@@ -4,7 +4,7 @@ Declared like the rest of the file (schema.py: strict types, finite numbers, no 
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -114,7 +114,12 @@ class ControllerSection(Section):
     as a disturbance and yields to it (controller/controllers.py, docs/walking.md).
     """
 
-    name: ControllerKind = Field(ControllerKind.GC_LQR_DOB, strict=False)
+    # A registry name (the paper's "pid", "gc", "gc+lqr", "gc+lqr+dob", or an installed
+    # package's) or a plug-in, "path/to/file.py:Class" or "package.module:Class"
+    # (hil/controllers/registry.py); `params` is the plug-in's own table, [controller.params],
+    # validated by its Params when the controller is resolved.
+    name: str = Field(str(ControllerKind.GC_LQR_DOB), min_length=1)
+    params: dict[str, Any] = Field(default_factory=dict)
     gc_compliance: GcCompliance = Field(GcCompliance.JOINT, strict=False)
     gc_load: Literal["weight", "planned-motion"] = "weight"
     kdist: float = Field(1.0, ge=0)

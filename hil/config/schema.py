@@ -175,6 +175,7 @@ class SafetySection(Section):
     on_goal_saturated: Reaction = _reaction(Reaction.HOLD)
     on_gain_out_of_range: Reaction = _reaction(Reaction.HOLD)
     on_overrun: Reaction = _reaction(Reaction.HOLD)
+    on_controller_fault: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_exit: Reaction = _reaction(Reaction.TORQUE_OFF)
 
     def reaction(self, cause: SafetyCause) -> Reaction:

@@ -379,7 +379,7 @@ def long_contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relati
     """The paper's compliance claim (20-40 N, no trip) over 30 s, for each DOB run."""
     low, high = PAPER_DOB_CONTACT_FORCE_N
     relations = []
-    for entry in (e for e in entries if e.experiment == exp and e.choice.kind.has_dob):
+    for entry in (e for e in entries if e.experiment == exp and e.choice.uses_kdist):
         label = entry.choice.label
 
         def lasting(entry: RunEntry = entry, label: str = label) -> tuple[bool, str]:

@@ -21,6 +21,7 @@ import numpy as np
 from hil.experiments.legs import anchor_feet, leg_model, placed_configuration
 from hil.experiments.walking_kinematics import WalkingKinematics, stopped_at_s
 from hil.output.plots import ComparisonRun, comparison_title, save_figure
+from hil.vocabulary import ControllerKind
 
 FOOT_COLOUR = "#9b59b6"  # the paper's purple foot placements
 LEG_COLOURS = ("tab:blue", "tab:red")  # left, right
@@ -77,7 +78,7 @@ def lateral_zmp_figure(
     """Fig. 7: per controller, the desired and the measured lateral ZMP, with the feet."""
     from matplotlib.figure import Figure
 
-    ordered = sorted(runs, key=lambda r: r.choice.kind.value)
+    ordered = sorted(runs, key=lambda r: r.choice.name)
     figure = Figure(figsize=(9.0, 2.1 * len(ordered) + 1.0), layout="constrained")
     axes = np.atleast_1d(figure.subplots(len(ordered), 1, sharex=True, sharey=True))
     pattern = experiment.pattern
@@ -109,14 +110,14 @@ def walking_label(entry: ComparisonRun) -> str:
     walking scheme, hil/experiments/walking_scheme.py); the scheme's terms come from the run's
     summary.json."""
     scheme = str(entry.run.summary.get("reference_feedback") or "")
-    if entry.choice.kind.value == "pid" and "deflection model" in scheme:
+    if entry.choice.kind is ControllerKind.PID and "deflection model" in scheme:
         return "default (pid + the lab's scheme)"
     return entry.label
 
 
 def _paper_order(runs: Sequence[ComparisonRun]) -> list[ComparisonRun]:
     order = {"pid": 0, "gc": 1, "gc+lqr": 2, "gc+lqr+dob": 3}
-    return sorted(runs, key=lambda r: order.get(r.choice.kind.value, 9))
+    return sorted(runs, key=lambda r: order.get(r.choice.name, 9))
 
 
 def _mark_fall(ax: Any, entry: ComparisonRun, kinematics: WalkingKinematics) -> None:

@@ -14,11 +14,11 @@ run_record.py          the tick's log rows kept and written, the supervisor's ne
 run_end.py             every exit path: torque state, bus closed, metrics, summary.json
 """
 
+from hil.controllers.paper_factory import build_controller, joint_params
+from hil.controllers.robot_model import HumanoidLegs, RobotModel, SingleLinks, robot_model
 from hil.loop.clock import LockstepClock, LoopClock, Tick, WallClock
-from hil.loop.controller_factory import build_controller, joint_params
 from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import MAX_RUN_DURATION_S, RunRequest, StopFlag, duration_problem
-from hil.loop.robot_model import HumanoidLegs, RobotModel, SingleLinks, robot_model
 from hil.loop.runner import LOST_BUS_ERRORS, Loop, run_experiment
 from hil.loop.start_gate import StartRefused
 from hil.loop.timeline import Phase, Timeline

@@ -74,8 +74,8 @@ class ExperimentFeed:
             self.scheduler.update(k, link, self._lqr_contact(k), self._lqr_contact(k + lead))
         motion = self.experiment.planned_motion(time_s)  # a walk's plan: GC load, LQR
         self.robot.set_planned_motion(motion)
-        self.controller.set_planned_motion(motion)
-        if self.request.choice.kind.has_dob:
+        self._planned_motion = motion  # the controller's, in its ControlInput
+        if self.request.choice.uses_kdist:
             kdist = self.experiment.kdist_at(time_s, self.request.choice.kdist)
             if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):
                 self.controller.set_kdist(kdist)

@@ -51,7 +51,7 @@ from threadpoolctl import threadpool_limits
 
 from controller import JointController
 from controller.lqr import TrackingGain
-from hil.loop.robot_model import RobotModel
+from hil.controllers.robot_model import RobotModel
 from hil.output.log_process import never_preempt_the_loop
 
 LOCKSTEP_LEAD_TICKS = 4  # a design requested at tick k is in force from tick k + 4 (20 ms)

@@ -67,9 +67,9 @@ class RunEnd:
         choice = self.request.choice
         summary = {
             "experiment": self.experiment.name,
-            "controller": str(choice.kind),
+            "controller": choice.name,
             "controller_label": choice.label,
-            "kdist": choice.kdist if choice.kind.has_dob else None,
+            "kdist": choice.kdist if choice.uses_kdist else None,
             "termination": self.ending.text,
             "ticks": self.ticks_done,
             "wall_time_s": wall_time_s,

@@ -37,7 +37,7 @@ class RunRecording:
         phase: Phase,
         timing: tuple[int, float, float, float, float, float],
     ) -> None:
-        terms = self.controller.terms if self._controller_started else None
+        terms = self.controller.terms() if self._controller_started else None
         zeros = self._zeros
         extra = sample.extra
         sensors = [extra.get(name, math.nan) for name in self.sensor_columns]
@@ -61,9 +61,11 @@ class RunRecording:
                 sample.motor_valid,
                 sample.link_valid,
                 sample.link_age_s,
-                terms.uc if terms else zeros,  # `terms` are copies
-                terms.d_hat if terms else zeros,
-                terms.ug if terms else zeros,
+                *(
+                    (terms[name] for name in self.term_names)  # copies: the contract's
+                    if terms is not None
+                    else (zeros for _ in self.term_names)
+                ),
             ),
             tick.slack_s,
             tick.measured_period_s,

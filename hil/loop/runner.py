@@ -36,23 +36,28 @@ from __future__ import annotations
 import gc
 import math
 import time
+import traceback
 from dataclasses import dataclass
 from typing import Any
 
 import can
 import numpy as np
 
-from controller import JointController
+from controller import PlannedMotion
 from drivers.joint_bus import BusError, JointBus, JointDevices, JointSample, wrench_keys
 from hil.config import Config
+from hil.controllers import ControlInput, Controller, build
+from hil.controllers.paper import PaperController
+from hil.controllers.paper_factory import joint_params
+from hil.controllers.preflight import goal_problem, terms_problem
+from hil.controllers.robot_model import robot_model
+from hil.controllers.setup import controller_setup
 from hil.experiments import Experiment
 from hil.loop.clock import LoopClock, Tick
-from hil.loop.controller_factory import build_controller, joint_params
 from hil.loop.experiment_feed import ExperimentFeed
 from hil.loop.gain_scheduler import GainScheduler
 from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import RunRequest, StopFlag
-from hil.loop.robot_model import robot_model
 from hil.loop.run_end import RunEnd
 from hil.loop.run_record import RunRecording
 from hil.loop.start_gate import StartRefused, start_gate
@@ -61,7 +66,7 @@ from hil.output.log_process import open_run_log
 from hil.output.records import RunResult
 from hil.output.runlog import RunLog
 from hil.safety import SafeState, Supervisor
-from hil.vocabulary import RunEnding, Termination
+from hil.vocabulary import RunEnding, SafetyCause, Termination
 from hil.wiring.hardware import configured_current_limits_a
 
 DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
@@ -125,24 +130,20 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         self.supervisor.check_reference(low, high)
         self.robot = robot_model(config)
         self._lqr_contacts = self._lqr_contact_table(request.run_duration_s)
-        self.controller: JointController = build_controller(
-            config,
-            request.choice,
-            self.period,
-            self.robot,
-            np.broadcast_to(self.experiment.reference(0.0), (n,)),
-            self._lqr_contacts[0],
-        )
+        self.controller: Controller = self._build_controller()
+        self.term_names = type(self.controller).term_names
         self.scheduler: GainScheduler | None = None
-        if self.robot.rescheduled and request.choice.kind.has_lqr:
+        lqr = request.choice.kind is not None and request.choice.kind.has_lqr
+        if self.robot.rescheduled and lqr and isinstance(self.controller, PaperController):
             self.scheduler = GainScheduler(
                 self.robot,
-                self.controller,
+                self.controller.joint_controller,
                 self.period,
                 config.model.gain_reschedule_period_s,
                 wall_clock=not clock.deterministic,
             )
         self._support: object = None
+        self._planned_motion: PlannedMotion | None = None  # the experiment's, this tick
         self._kdist: np.ndarray | None = None
         self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
         self.sensor_columns = sensor_columns(config)
@@ -156,6 +157,7 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             self.sensor_columns,
             mcap=request.mcap,
             sinks=request.sinks,
+            term_columns=self.term_names,
         )
         # Formatting the rows here: during the next tick's bus wait. The log writer's process
         # formats them: handed over at the end of their own tick (see `_write_kept_record`).
@@ -177,8 +179,20 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         self._no_goal = np.full(n, math.nan)  # logged on ticks that send nothing
         self._zeros = np.zeros(n)
         self._controller_started = False
+        self._terms_checked = False  # the controller's terms() against its term_names, once
         self._last_step_tick = -1
         self._logged_events = self._logged_notices = 0
+
+    def _build_controller(self) -> Controller:
+        """The chosen controller for this robot, at the experiment's start posture."""
+        setup = controller_setup(
+            self.config,
+            self.period,
+            self.robot,
+            np.broadcast_to(self.experiment.reference(0.0), (self.n,)),
+            self._lqr_contacts[0],
+        )
+        return build(self.request.choice, setup, self.config.controller.params)
 
     # --- the run -------------------------------------------------------------------------------
     def run(self) -> RunResult:
@@ -263,7 +277,7 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         goal = self.supervisor.command(proposed, sample) if self.torque.on else None
         phase = self.timeline.phase(k)
         if proposed is not None and phase is Phase.EXPERIMENT and self._controller_started:
-            self.controller.notify_applied(goal if goal is not None else proposed)
+            self.controller.applied(goal if goal is not None else proposed)
         if goal is not None:
             self.bus.write(goal)
             self._last_goal = goal
@@ -324,7 +338,7 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         self._log_safety()
         if k == 0:  # this tick's sample predates the enable: expect torque from the next one on
             self.supervisor.torque_enabled(self._hold_goal)
-            if self.request.choice.kind.has_dob:
+            if self.request.choice.uses_kdist:
                 self.supervisor.check_settings(self.request.choice.kdist)
                 self._log_safety()
         self._torque_off_if_latched(k, time_s, sample)
@@ -369,14 +383,49 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         if self.feedback is not None:
             time_s = self.timeline.experiment_time_s(k)
             reference = self.feedback.reference(time_s, reference, link, sample.motor_angle_rad)
+        state = ControlInput(
+            tick=k,
+            time_s=self.timeline.experiment_time_s(k),
+            motor_angle_rad=sample.motor_angle_rad,
+            link_angle_rad=link,
+            motor_velocity_rad_s=sample.motor_velocity_rad_s,
+            motor_current_a=sample.motor_current_a,
+            reference_rad=reference,
+            goal_in_force_rad=self._last_goal,
+            ticks_since_step=k - self._last_step_tick if self._controller_started else 0,
+            support=self._support,
+            planned_motion=self._planned_motion,
+        )
         controller = self.controller
-        if not self._controller_started:  # bumpless: from the goal the servo is driven with
-            controller.reset(sample.motor_angle_rad, link, reference, self._last_goal)
-            self._controller_started = True
-        elif k - self._last_step_tick > 1:  # ticks without a step: do not read them as motion
-            controller.resync(sample.motor_angle_rad, link)
-        self._last_step_tick = k
-        return controller.step(sample.motor_angle_rad, link, reference), reference
+        try:
+            if not self._controller_started:  # bumpless: from the goal the servo is driven with
+                controller.start(state)
+                self._controller_started = True
+            self._last_step_tick = k
+            goal = controller.step(state)
+        except Exception as exc:  # noqa: BLE001 - the controller's fault: torque off, recorded
+            self._controller_fault(state.time_s, "raised", exc)
+            return None, reference
+        problem = goal_problem(goal, n)
+        if problem is None and not self._terms_checked:
+            problem = terms_problem(controller, n)
+            self._terms_checked = True
+        if problem is not None:
+            self._controller_fault(state.time_s, problem)
+            return None, reference
+        return goal, reference
+
+    def _controller_fault(self, time_s: float, what: str, exc: Exception | None = None) -> None:
+        """The controller broke its contract: the supervisor's CONTROLLER_FAULT (torque off by
+        default), the traceback in events.jsonl."""
+        if exc is not None:
+            what = f"{what} {type(exc).__name__}: {exc}"
+            trace = "".join(traceback.format_exception(exc))
+            self.log.event(time_s, "controller_traceback", trace, tick=self.ticks_done)
+        self.supervisor.trip(
+            SafetyCause.CONTROLLER_FAULT, None, f"controller {self.request.choice.name}: {what}"
+        )
+        self._log_safety()
 
     def _injected_overrun(self, time_s: float) -> bool:
         for start, duration in self.request.overruns:

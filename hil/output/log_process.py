@@ -45,7 +45,7 @@ import numpy as np
 
 from hil.output import channels as ch
 from hil.output.channels import MessageSink
-from hil.output.runlog import PER_JOINT_COLUMNS, RunLog
+from hil.output.runlog import PAPER_TERM_COLUMNS, RunLog, per_joint_columns
 from hil.output.strict_json import dumps
 
 _HEADER = struct.Struct("<II")  # record type, payload bytes
@@ -77,23 +77,31 @@ def open_run_log(
     *,
     mcap: bool,
     sinks: Sequence[MessageSink] = (),
+    term_columns: Sequence[str] = PAPER_TERM_COLUMNS,
 ) -> RunLog | LogProcess:
     """The run's log: written by a process of its own, or in this one when there are further
-    message sinks (the live view's server lives here) or no fork."""
+    message sinks (the live view's server lives here) or no fork. term_columns: the
+    controller's logged terms (`hil.output.runlog.per_joint_columns`)."""
     if sinks or not hasattr(os, "fork"):
-        return RunLog(out_dir, joint_names, meta, sensor_columns, mcap=mcap, sinks=sinks)
-    return LogProcess(out_dir, joint_names, meta, sensor_columns, mcap=mcap)
+        return RunLog(
+            out_dir, joint_names, meta, sensor_columns, mcap=mcap, sinks=sinks,
+            term_columns=term_columns,
+        )  # fmt: skip
+    return LogProcess(
+        out_dir, joint_names, meta, sensor_columns, mcap=mcap, term_columns=term_columns
+    )
 
 
 class _RowLayout:
     """Where each number of a tick's record lies (float64 slots)."""
 
-    def __init__(self, n_joints: int, n_sensors: int) -> None:
+    def __init__(self, n_joints: int, n_sensors: int, columns: Sequence[str]) -> None:
         self.n = n_joints
+        self.columns = tuple(columns)
         self.sensors = slice(2, 2 + n_sensors)
         self.state = 2 + n_sensors
         self.joints = self.state + 3  # state, phase, skipped
-        self.clock = self.joints + len(PER_JOINT_COLUMNS) * n_joints
+        self.clock = self.joints + len(self.columns) * n_joints
         self.timing = self.clock + 2
         self.size = self.timing + _TIMING_VALUES
 
@@ -109,11 +117,13 @@ class LogProcess:
         sensor_columns: Sequence[str],
         *,
         mcap: bool,
+        term_columns: Sequence[str] = PAPER_TERM_COLUMNS,
     ) -> None:
         self.dir = Path(out_dir)
         self.rows = 0
         self.closed = False
-        self._layout = _RowLayout(len(joint_names), len(sensor_columns))
+        columns = per_joint_columns(term_columns)
+        self._layout = _RowLayout(len(joint_names), len(sensor_columns), columns)
         record = bytearray(_HEADER.size + 8 * self._layout.size)
         _HEADER.pack_into(record, 0, _ROW, 8 * self._layout.size)
         self._record = record
@@ -127,7 +137,7 @@ class LogProcess:
             import fcntl
 
             fcntl.fcntl(self._to_writer, _F_SETPIPE_SZ, _PIPE_BYTES)
-        args = (out_dir, tuple(joint_names), meta, tuple(sensor_columns), mcap)
+        args = (out_dir, tuple(joint_names), meta, tuple(sensor_columns), mcap, tuple(term_columns))
         sys.stdout.flush()
         sys.stderr.flush()
         self.pid = os.fork()
@@ -265,8 +275,10 @@ def _serve(rows: int, acks: int, args: tuple, layout: _RowLayout) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         never_preempt_the_loop()
-        out_dir, joint_names, meta, sensor_columns, mcap = args
-        log = RunLog(Path(out_dir), joint_names, meta, sensor_columns, mcap=mcap)
+        out_dir, joint_names, meta, sensor_columns, mcap, terms = args
+        log = RunLog(
+            Path(out_dir), joint_names, meta, sensor_columns, mcap=mcap, term_columns=terms
+        )
         os.write(acks, b"ok\n")
         _Writer(log, layout, acks).run(rows)
     except BaseException as exc:  # noqa: BLE001 - said to the loop, then the writer ends
@@ -287,7 +299,7 @@ class _Writer:
         self.strings: list[str] = []
         n, start = layout.n, layout.joints
         self.columns = []
-        for c, name in enumerate(PER_JOINT_COLUMNS):
+        for c, name in enumerate(layout.columns):
             kind = bool if name in ch.BOOL_COLUMNS else int if name in ch.INTEGER_COLUMNS else None
             self.columns.append((slice(start + c * n, start + (c + 1) * n), kind))
 

@@ -293,8 +293,8 @@ def write_report(
         "runs": [
             {
                 "experiment": entry.experiment,
-                "controller": str(entry.choice.kind),
-                "kdist": entry.choice.kdist if entry.choice.kind.has_dob else None,
+                "controller": entry.choice.name,
+                "kdist": entry.choice.kdist if entry.choice.uses_kdist else None,
                 "reading": entry.choice.reading,
                 "label": entry.choice.label,
                 "termination": str(entry.result.ending),

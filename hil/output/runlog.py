@@ -41,7 +41,7 @@ from hil.output import channels as ch
 from hil.output.channels import Channel, ChannelSet, MessageSink, encode_document
 from hil.output.strict_json import dumps, plain
 
-PER_JOINT_COLUMNS = (
+MEASURED_JOINT_COLUMNS = (
     "reference_rad",
     "goal_rad",
     "motor_angle_rad",
@@ -54,10 +54,11 @@ PER_JOINT_COLUMNS = (
     "motor_valid",
     "link_valid",
     "link_age_s",
-    "uc_rad",
-    "d_hat_rad",
-    "ug_rad",
 )
+# The controller's logged terms follow (`Controller.term_names`): the paper's controllers log
+# the parts of the goal u = uc + d_hat + ug; a plug-in logs what it names, or nothing.
+PAPER_TERM_COLUMNS = ("uc_rad", "d_hat_rad", "ug_rad")
+PER_JOINT_COLUMNS = (*MEASURED_JOINT_COLUMNS, *PAPER_TERM_COLUMNS)  # the paper's controllers' log
 DEFAULT_SENSOR_COLUMNS = ("contact_force_n",)
 CLOCK_COLUMNS = ("slack_s", "measured_period_s")
 
@@ -110,6 +111,15 @@ def _json_string(text: str) -> str:
     return json.dumps(text)
 
 
+def per_joint_columns(term_columns: Sequence[str]) -> tuple[str, ...]:
+    """A run's per-joint columns: the measured ones, then the controller's terms (refused if a
+    term is named like a measured column)."""
+    clash = sorted(set(term_columns) & set(MEASURED_JOINT_COLUMNS))
+    if clash:
+        raise ValueError(f"a controller's terms cannot be named {clash}: log.csv has them")
+    return (*MEASURED_JOINT_COLUMNS, *term_columns)
+
+
 def joint_column(name: str, joint: str, n_joints: int) -> str:
     """The header of a per-joint column: `name` for one joint, `name[joint]` for several."""
     return name if n_joints == 1 else f"{name}[{joint}]"
@@ -127,16 +137,19 @@ class RunLog:
         *,
         mcap: bool = False,
         sinks: Sequence[MessageSink] = (),
+        term_columns: Sequence[str] = PAPER_TERM_COLUMNS,
     ) -> None:
-        """mcap: also write run.mcap; sinks: more receivers of the messages (not closed here)."""
+        """mcap: also write run.mcap; sinks: more receivers of the messages (not closed here);
+        term_columns: the controller's logged terms (per joint, after MEASURED_JOINT_COLUMNS)."""
         self.dir = Path(out_dir)
+        self.per_joint_columns = per_joint_columns(term_columns)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.joint_names = tuple(joint_names)
         self.sensor_columns = tuple(sensor_columns)
         n = len(self.joint_names)
         (self.dir / "meta.json").write_text(dumps(meta, indent=2) + "\n")
         joint_columns = [
-            joint_column(c, name, n) for name in self.joint_names for c in PER_JOINT_COLUMNS
+            joint_column(c, name, n) for name in self.joint_names for c in self.per_joint_columns
         ]
         head = ["tick", "time_s", *self.sensor_columns, "supervisor_state", "phase"]
         self.columns = [*head, "skipped_ticks", *joint_columns, *CLOCK_COLUMNS]
@@ -154,7 +167,7 @@ class RunLog:
 
     # --- message sinks (run.mcap, the live view) ----------------------------------------------
     def _open_sinks(self, meta: dict[str, Any], mcap: bool, sinks: Sequence[MessageSink]) -> None:
-        self.channels = ChannelSet(self.joint_names, PER_JOINT_COLUMNS, self.sensor_columns)
+        self.channels = ChannelSet(self.joint_names, self.per_joint_columns, self.sensor_columns)
         self.mcap = None
         if mcap:
             from hil.output.mcap_log import MCAP_NAME, McapSink
@@ -191,7 +204,7 @@ class RunLog:
         measured_period_s: float,
     ) -> None:
         """One tick. `sensors` in `sensor_columns` order; `joints` one array per
-        PER_JOINT_COLUMNS entry, each of length n_joints."""
+        `per_joint_columns` entry, each of length n_joints."""
         row = self._row
         row[0] = format_value(tick)
         row[1] = format_value(time_s)
@@ -222,7 +235,7 @@ class RunLog:
         formatting ~180 numbers once, not again for JSON. A value not read is null."""
         arrays = ",".join(
             f'"{column}":[{",".join(_json_cells(column, column_cells))}]'
-            for column, column_cells in zip(PER_JOINT_COLUMNS, cells, strict=True)
+            for column, column_cells in zip(self.per_joint_columns, cells, strict=True)
         )
         return f'{{"tick":{row[0]},"time_s":{_json_number(row[1])},{arrays}}}'.encode()
 

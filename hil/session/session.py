@@ -183,7 +183,7 @@ class Session:
         """The choice with its reading of (25) named when the configuration's is not the lab's
         default (so that the label and the directory say so)."""
         composition = self.config.controller.composition
-        if choice.reading is None and composition != "accumulated" and choice.kind.has_lqr:
+        if choice.reading is None and composition != "accumulated" and choice.ref.has_composition:
             return choice.with_reading(composition)
         return choice
 
@@ -284,7 +284,7 @@ class Session:
             "experiment": experiment.name,
             "experiment_title": experiment.title,
             "experiment_parameters": experiment.parameters(),
-            "controller": str(choice.kind),
+            "controller": choice.name,
             "controller_label": choice.label,
             "kdist": choice.kdist,
             "reading": choice.reading,

@@ -74,7 +74,7 @@ def checked_plan(spec: SweepSpec, base: Config) -> list[Task]:
             check_devices(config)
             limit = config.safety.max_kdist
             for choice in kdists:
-                if choice.kind.has_dob and choice.kdist > limit:
+                if choice.uses_kdist and choice.kdist > limit:
                     raise SpecError(
                         f"controller {choice.label}: Kdist {choice.kdist:g} is above [safety] "
                         f"max_kdist = {limit:g}"

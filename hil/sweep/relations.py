@@ -93,7 +93,9 @@ def stability_relations(
     after_push = (duration_s or impact.duration_s) - impact.world.pushes[0].start_s
     limit = after_push - STABLE_BEFORE_END_S
     relations = []
-    for entry in (e for e in entries if e.experiment == experiment and e.choice.kind.has_lqr):
+    for entry in (
+        e for e in entries if e.experiment == experiment and e.choice.ref.has_composition
+    ):
         label = entry.choice.label
 
         def stable(entry: RunEntry = entry, label: str = label) -> tuple[bool, str]:

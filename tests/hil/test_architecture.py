@@ -20,9 +20,11 @@ HIL_LAYERS = {
     "hil.output": {"hil.vocabulary"},
     "hil.experiments": {"hil.vocabulary", "hil.config", "hil.output", "hil.identify"},
     "hil.safety": {"hil.vocabulary", "hil.config"},
+    "hil.controllers": {"hil.vocabulary", "hil.config", "hil.experiments"},
     "hil.wiring": {"hil.vocabulary", "hil.config", "hil.experiments"},
     "hil.loop": {
         "hil.vocabulary",
+        "hil.controllers",
         "hil.config",
         "hil.output",
         "hil.experiments",
@@ -33,6 +35,7 @@ HIL_LAYERS = {
     "hil.bringup": {"hil.vocabulary", "hil.config"},
     "hil.session": {
         "hil.vocabulary",
+        "hil.controllers",
         "hil.config",
         "hil.output",
         "hil.experiments",
@@ -42,6 +45,7 @@ HIL_LAYERS = {
     },
     "hil.bench": {
         "hil.vocabulary",
+        "hil.controllers",
         "hil.config",
         "hil.output",
         "hil.experiments",
@@ -50,6 +54,7 @@ HIL_LAYERS = {
     },
     "hil.sweep": {
         "hil.vocabulary",
+        "hil.controllers",
         "hil.config",
         "hil.output",
         "hil.experiments",
@@ -59,6 +64,7 @@ HIL_LAYERS = {
     },
     "hil.cli": {
         "hil.vocabulary",
+        "hil.controllers",
         "hil.config",
         "hil.output",
         "hil.experiments",

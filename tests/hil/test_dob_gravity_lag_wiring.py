@@ -10,8 +10,8 @@ import numpy as np
 
 from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD, SupportState
 from hil.config import load_config
-from hil.loop.controller_factory import build_controller
-from hil.loop.robot_model import robot_model
+from hil.controllers.paper_factory import build_controller
+from hil.controllers.robot_model import robot_model
 from hil.vocabulary import ControllerChoice
 
 

@@ -31,7 +31,7 @@ from controller import GcCompliance, joint_static_compliance
 from controller.humanoid import HumanoidLegGravity, LegModel, SupportState
 from hil.cli import main
 from hil.config import load_config, robot_description_text
-from hil.loop.controller_factory import gc_compliance
+from hil.controllers.paper_factory import gc_compliance
 from hil.wiring.emulation import emulated_joint_stiffness
 from sim_backend.dynamixel.device import H54Device
 from sim_backend.humanoid.params import RobotTruthParams, leg_eeprom_overrides
@@ -168,7 +168,7 @@ def test_a_comparison_runs_gc_with_each_reading_and_builds_each() -> None:
     """The humanoid comparisons run GC with the configuration's reading and once more with the
     paper's K^-1: the choice carries it into the controller's (8) (1/K per joint), its label,
     its run directory and the report's lookup, which tells the two GC runs apart."""
-    from hil.loop.controller_factory import build_controller
+    from hil.controllers.paper_factory import build_controller
     from hil.output.report import RunEntry, find
     from hil.session.comparison import humanoid_choices
     from hil.vocabulary import ControllerChoice, ControllerKind

@@ -13,6 +13,7 @@ import pytest
 import scipy.signal
 
 from hil.config import load_config
+from hil.controllers.paper_factory import gc_compliance
 from hil.identify import (
     ChirpExcitation,
     GearParams,
@@ -33,7 +34,6 @@ from hil.identify import (
     write_identification_figure,
 )
 from hil.identify.models import simulate_joint
-from hil.loop.controller_factory import gc_compliance
 
 PERIOD_S = 0.005
 # Sensor resolutions of the testbed (H54 e-Manual units, RLS RLC2IC on MR075)

@@ -85,7 +85,7 @@ def main() -> None:
 
     from controller.closed_chain import chain_coordinates, motion_subspace
     from controller.servo_cascade import cascade_state_space
-    from hil.loop.controller_factory import joint_params, servo_cascade
+    from hil.controllers.paper_factory import joint_params, servo_cascade
 
     base = load_config(robot="dyros-jet")
     sm = robot_model(base).sm(links, contact)

@@ -15,7 +15,7 @@ from controller import (
     make_controller,
 )
 from hil.config import Config, ConfigError
-from hil.loop.robot_model import RobotModel, robot_model
+from hil.controllers.robot_model import RobotModel, robot_model
 from hil.vocabulary import ControllerChoice
 
 
