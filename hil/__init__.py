@@ -1,6 +1,21 @@
-"""The loop and the product surface: scheduler, safety supervisor, experiments, logs, CLI."""
+"""flexjoint-hil: the 200 Hz loop of Kim et al., ICRA 2018 (gravity compensator + DOB + LQR)
+on flexible-joint, position-controlled actuators, on hardware and on a byte-exact emulation.
+
+The public surface, one page (each name is documented where it is defined):
+
+    Controller, ControllerParams, ControllerSetup, ControlInput
+                        the controller contract: write your own (hil/controllers/contract.py)
+    __version__         the installed version
+
+Everything is imported on first use, so that `import hil` stays cheap and importing one
+sub-package does not import them all.
+"""
+
+from __future__ import annotations
 
 import os
+from importlib import import_module, metadata
+from typing import TYPE_CHECKING
 
 # One BLAS thread: the loop's matrices are small (12 joints: at most 48 x 48), where a thread
 # pool costs more than it saves, and on a busy machine much more (measured on 2 shared cores:
@@ -8,3 +23,45 @@ import os
 # numpy is first imported; a value the user set stays.
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
+
+try:
+    __version__ = metadata.version("flexjoint-hil")
+except metadata.PackageNotFoundError:  # a source tree that was not installed
+    __version__ = "0+unknown"
+
+# name -> the module that defines it
+_EXPORTS = {
+    "ControlInput": "hil.controllers.contract",
+    "Controller": "hil.controllers.contract",
+    "ControllerParams": "hil.controllers.contract",
+    "ControllerSetup": "hil.controllers.contract",
+}
+
+__all__ = [
+    "ControlInput",
+    "Controller",
+    "ControllerParams",
+    "ControllerSetup",
+    "__version__",
+]
+
+if TYPE_CHECKING:
+    from hil.controllers.contract import (
+        ControlInput,
+        Controller,
+        ControllerParams,
+        ControllerSetup,
+    )
+
+
+def __getattr__(name: str) -> object:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hil' has no attribute {name!r}")
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

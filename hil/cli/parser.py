@@ -67,6 +67,14 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         "path/to/file.py:Class or package.module:Class (hil/controllers/contract.py; its "
         "parameters from [controller.params]); default: the config's [controller] name",
     )
+    run.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a parameter of a plug-in controller, as in [controller.params] (VALUE in TOML: "
+        "0.5, true, \"text\"); repeat for more",
+    )
     run.add_argument("--kdist", type=float, help="DOB gain Kdist (default: the config's)")
     run.add_argument(
         "--composition",

@@ -7,6 +7,7 @@ import os
 import shutil
 import sys
 import tempfile
+import tomllib
 from pathlib import Path
 
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
@@ -50,7 +51,25 @@ def _configured(args: argparse.Namespace) -> Config:
         )
     if args.seed is not None:
         config.changed("emulator", seed=args.seed, option="--seed")  # validated, used below
+    if args.param:
+        params = {**config.controller.params, **_params(args.param)}
+        config = config.changed("controller", params=params, option="--param")
     return config
+
+
+def _params(items: list[str]) -> dict[str, object]:
+    """--param KEY=VALUE ..., each VALUE read as TOML (a bare word as text)."""
+    params: dict[str, object] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip().isidentifier():
+            raise ConfigError(f"--param {item!r}: give KEY=VALUE, e.g. --param kp=0.5")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        params[key.strip()] = value
+    return params
 
 
 def _check_combinations(args: argparse.Namespace, embedded: bool, faults: tuple) -> None:

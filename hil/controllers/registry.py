@@ -14,21 +14,16 @@ Adding a built-in controller is one module and one line of `BUILT_IN`.
 
 from __future__ import annotations
 
-import hashlib
-import importlib
-import importlib.util
 import inspect
-import keyword
-import sys
 from collections.abc import Mapping
 from importlib.metadata import entry_points
-from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
 
 from hil.controllers.contract import Controller, ControllerParams, ControllerSetup
 from hil.controllers.paper import PaperController
+from hil.plugins import PluginError, class_from_target, entry_point_target, target_of
 from hil.vocabulary import ControllerChoice, ControllerRef
 
 # name -> "module:Class", one line per built-in controller
@@ -39,8 +34,6 @@ BUILT_IN: dict[str, str] = {
     "gc+lqr+dob": "hil.controllers.paper:GcLqrDob",
 }
 ENTRY_POINT_GROUP = "flexjoint_hil.controllers"
-
-_LOADED: dict[str, type[Controller]] = {}  # spec -> class (a plug-in file is loaded once)
 
 
 class ControllerLoadError(ValueError):
@@ -56,7 +49,10 @@ def available() -> list[str]:
 def resolve(spec: str) -> ControllerRef:
     """The controller `spec` names (see the module docstring), loaded and checked."""
     spec = spec.strip()
-    target = _target(spec)
+    try:
+        target = _target(spec)
+    except PluginError as exc:
+        raise ControllerLoadError(str(exc)) from None
     cls = _load(target, spec)
     _check_contract(cls, spec)
     if isinstance(cls, type) and issubclass(cls, PaperController):
@@ -71,7 +67,7 @@ def resolve(spec: str) -> ControllerRef:
 
 def controller_class(ref: ControllerRef) -> type[Controller]:
     """The class of a resolved controller (loaded again in a fresh process)."""
-    return _load(_target(ref.spec), ref.spec)
+    return _load(ref.spec if ":" in ref.spec else _target(ref.spec), ref.spec)
 
 
 def controller_params(
@@ -107,91 +103,25 @@ def build(choice: ControllerChoice, setup: ControllerSetup, table: Mapping[str, 
 
 # --- finding the class ----------------------------------------------------------------------
 def _target(spec: str) -> str:
-    """`spec` as "module:Class" or "file:/abs/path.py:Class"."""
+    """`spec` as a target ("module:Class" or "file:/abs/path.py:Class")."""
     if spec in BUILT_IN:
         return BUILT_IN[spec]
-    if ":" not in spec:
-        for ep in entry_points(group=ENTRY_POINT_GROUP):
-            if ep.name == spec:
-                return ep.value
+    if ":" in spec:
+        return target_of(spec)
+    target = entry_point_target(ENTRY_POINT_GROUP, spec)
+    if target is None:
         raise ControllerLoadError(
             f"unknown controller {spec!r}: give one of {available()}, or a plug-in as "
             "path/to/file.py:Class or package.module:Class"
         )
-    if spec.startswith("file:"):
-        return spec
-    where, _, name = spec.rpartition(":")
-    if where.endswith(".py") or "/" in where or "\\" in where:
-        path = Path(where).expanduser()
-        if not path.is_file():
-            raise ControllerLoadError(f"{spec}: no such file {where}")
-        return f"file:{path.resolve()}:{name}"
-    return spec
+    return target
 
 
 def _load(target: str, spec: str) -> type[Controller]:
-    cached = _LOADED.get(target)
-    if cached is not None:
-        return cached
-    where, _, name = target.rpartition(":")
-    if not name.isidentifier() or keyword.iskeyword(name):
-        raise ControllerLoadError(f"{spec}: {name!r} is not a class name")
-    module = _import_file(where[len("file:") :], spec) if where.startswith("file:") else None
-    if module is None:
-        try:
-            module = importlib.import_module(where)
-        except Exception as exc:  # noqa: BLE001 - any error of the user's module, said
-            raise ControllerLoadError(
-                f"{spec}: cannot import {where}: {type(exc).__name__}: {exc}"
-            ) from None
-    cls = getattr(module, name, None)
-    if cls is None:
-        found = sorted(
-            n
-            for n, value in vars(module).items()
-            if isinstance(value, type) and issubclass(value, Controller) and value is not Controller
-        )
-        raise ControllerLoadError(
-            f"{spec}: {where.removeprefix('file:')} has no {name}"
-            + (f" (its controllers: {', '.join(found)})" if found else "")
-        )
-    _LOADED[target] = cls
-    return cls
-
-
-def _import_file(path: str, spec: str) -> object:
-    """A plug-in file as a module of its own (in sys.modules, so that a forked worker and
-    pickle find its classes)."""
-    digest = hashlib.sha1(path.encode()).hexdigest()[:10]
-    module_name = f"hil_plugin_{Path(path).stem}_{digest}"
-    if module_name in sys.modules:
-        return sys.modules[module_name]
-    loader_spec = importlib.util.spec_from_file_location(module_name, path)
-    if loader_spec is None or loader_spec.loader is None:
-        raise ControllerLoadError(f"{spec}: {path} is not a Python file")
-    module = importlib.util.module_from_spec(loader_spec)
-    sys.modules[module_name] = module
     try:
-        loader_spec.loader.exec_module(module)
-    except Exception as exc:  # noqa: BLE001 - any error of the user's file, said with its line
-        del sys.modules[module_name]
-        line = _line_of(exc, path)
-        raise ControllerLoadError(
-            f"{spec}: importing {path}{line} failed: {type(exc).__name__}: {exc}"
-        ) from None
-    return module
-
-
-def _line_of(exc: BaseException, path: str) -> str:
-    if isinstance(exc, SyntaxError) and exc.lineno:
-        return f" (line {exc.lineno})"
-    tb = exc.__traceback__
-    line = None
-    while tb is not None:
-        if tb.tb_frame.f_code.co_filename == path:
-            line = tb.tb_lineno
-        tb = tb.tb_next
-    return f" (line {line})" if line else ""
+        return class_from_target(target, spec)  # type: ignore[return-value]
+    except PluginError as exc:
+        raise ControllerLoadError(str(exc)) from None
 
 
 def _check_contract(cls: object, spec: str) -> None:

@@ -286,6 +286,10 @@ class Session:
             "experiment_parameters": experiment.parameters(),
             "controller": choice.name,
             "controller_label": choice.label,
+            # where it was loaded from ("file:/abs/path.py:Class" for a plug-in) and its own
+            # parameters ([controller.params]; the paper's are in `config`)
+            "controller_spec": choice.ref.spec,
+            "controller_params": dict(self.config.controller.params),
             "kdist": choice.kdist,
             "reading": choice.reading,
             "gc_compliance": str(choice.gc_compliance or self.config.controller.gc_compliance),

@@ -16,11 +16,18 @@ DEVICE_LIBRARIES = ("mujoco", "dynamixel_sdk", "can", "canopen", "serial")
 # hil's sub-packages, each allowed to import only those listed (besides itself).
 HIL_LAYERS = {
     "hil.vocabulary": set(),
+    "hil.plugins": set(),
     "hil.config": {"hil.vocabulary"},
     "hil.output": {"hil.vocabulary"},
-    "hil.experiments": {"hil.vocabulary", "hil.config", "hil.output", "hil.identify"},
+    "hil.experiments": {
+        "hil.vocabulary",
+        "hil.config",
+        "hil.output",
+        "hil.identify",
+        "hil.plugins",
+    },
     "hil.safety": {"hil.vocabulary", "hil.config"},
-    "hil.controllers": {"hil.vocabulary", "hil.config", "hil.experiments"},
+    "hil.controllers": {"hil.vocabulary", "hil.config", "hil.experiments", "hil.plugins"},
     "hil.wiring": {"hil.vocabulary", "hil.config", "hil.experiments"},
     "hil.loop": {
         "hil.vocabulary",
@@ -63,6 +70,7 @@ HIL_LAYERS = {
         "hil.session",
     },
     "hil.cli": {
+        "hil.plugins",
         "hil.vocabulary",
         "hil.controllers",
         "hil.config",
