@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import hil
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES, GC_COMPLIANCES
 from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
@@ -55,9 +56,11 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     run.add_argument(
         "experiment",
         nargs="?",
-        choices=sorted([*EXPERIMENTS, *NAMED_COMPARISONS]),
-        help="the experiment to run; omit for the full comparison; `walking`: the walking "
-        "comparison on DYROS-JET",
+        metavar="EXPERIMENT",
+        help="the experiment to run: one of "
+        + ", ".join(sorted([*EXPERIMENTS, *NAMED_COMPARISONS]))
+        + ", or your own as path/to/file.py:Name (hil/experiments/base.py); omit for the full "
+        "comparison; `walking`: the walking comparison on DYROS-JET",
     )
     run.add_argument(
         "--controller",
@@ -73,7 +76,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="a parameter of a plug-in controller, as in [controller.params] (VALUE in TOML: "
-        "0.5, true, \"text\"); repeat for more",
+        '0.5, true, "text"); repeat for more',
     )
     run.add_argument("--kdist", type=float, help="DOB gain Kdist (default: the config's)")
     run.add_argument(
@@ -193,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Kim et al. (ICRA 2018) GC + DOB + LQR on flexible-joint Dynamixel Pro "
         "actuators: the real testbed, or its byte-exact emulation.",
     )
+    parser.add_argument("--version", action="version", version=f"hil {hil.__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import sys
@@ -58,7 +59,8 @@ def _configured(args: argparse.Namespace) -> Config:
 
 
 def _params(items: list[str]) -> dict[str, object]:
-    """--param KEY=VALUE ..., each VALUE read as TOML (a bare word as text)."""
+    """--param KEY=VALUE ..., each VALUE read as TOML; a bare word is text (also nan and inf,
+    which no parameter takes as a number)."""
     params: dict[str, object] = {}
     for item in items:
         key, sep, text = item.partition("=")
@@ -67,6 +69,8 @@ def _params(items: list[str]) -> dict[str, object]:
         try:
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except tomllib.TOMLDecodeError:
+            value = text.strip()
+        if isinstance(value, float) and not math.isfinite(value):
             value = text.strip()
         params[key.strip()] = value
     return params
@@ -252,6 +256,11 @@ def _named_comparison(args: argparse.Namespace) -> str | None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     named = _named_comparison(args)
+    if args.experiment is not None:
+        try:
+            get_experiment(args.experiment)
+        except ValueError as exc:
+            raise ConfigError(f"hil run: {exc}") from None
     config = _configured(args)
     if named is not None and robot_of(config) != NAMED_COMPARISONS[named]:
         raise ConfigError(f"`hil run {named}` is for the robot {NAMED_COMPARISONS[named]!r}")

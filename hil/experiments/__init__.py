@@ -12,8 +12,12 @@
     step-on-object  the dynamic walk over a box the plan does not know (Fig. 8)
 
 `EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
-name that does not exist.
+name that does not exist, and loads a plug-in experiment ("path/to/file.py:Name" or
+"package.module:Name": an `Experiment` instance, or a subclass made with no arguments; its
+`robot` attribute names the built-in robot it is for, "testbed" by default).
 """
+
+import inspect
 
 from hil.experiments.base import Experiment, Obstacle, Push, Ramp, TestbedExperiment, World
 from hil.experiments.contact import CONTACT, CONTACT_LONG
@@ -21,6 +25,7 @@ from hil.experiments.humanoid import PUSH, STAND
 from hil.experiments.identify import IDENTIFY, IdentifyExperiment
 from hil.experiments.impact import IMPACT, IMPACT_LONG
 from hil.experiments.walking import STEP_ON_OBJECT, WALK_DYNAMIC, WALK_SLOW
+from hil.plugins import PluginError, class_from_target, target_of
 
 EXPERIMENTS: dict[str, Experiment] = {
     e.name: e
@@ -46,16 +51,42 @@ ROBOT_OF_EXPERIMENT: dict[str, str] = {
 def robot_of_experiment(name: str | None) -> str:
     """The built-in robot an experiment runs on ("testbed" for the paper's 1-DoF testbed and
     for the comparison, name None)."""
-    return ROBOT_OF_EXPERIMENT.get(name, "testbed") if name else "testbed"
+    if not name:
+        return "testbed"
+    if name in ROBOT_OF_EXPERIMENT or name in EXPERIMENTS:
+        return ROBOT_OF_EXPERIMENT.get(name, "testbed")
+    return str(getattr(get_experiment(name), "robot", "testbed"))
 
 
 def get_experiment(name: str) -> Experiment:
-    try:
+    """A built-in experiment by its name, or a plug-in by where it is (module docstring)."""
+    if name in EXPERIMENTS:
         return EXPERIMENTS[name]
-    except KeyError:
+    if ":" not in name:
         raise ValueError(
-            f"unknown experiment {name!r}; choose one of {sorted(EXPERIMENTS)}"
-        ) from None
+            f"unknown experiment {name!r}; choose one of {sorted(EXPERIMENTS)}, or your own as "
+            "path/to/file.py:Name or package.module:Name"
+        )
+    try:
+        found = class_from_target(target_of(name), name)
+    except PluginError as exc:
+        raise ValueError(str(exc)) from None
+    if isinstance(found, type) and issubclass(found, Experiment):
+        if inspect.isabstract(found):
+            missing = ", ".join(f"{m}()" for m in sorted(found.__abstractmethods__))
+            raise ValueError(f"{name}: {found.__name__} does not define {missing}")
+        try:
+            found = found()
+        except Exception as exc:  # noqa: BLE001 - the user's constructor, said
+            raise ValueError(
+                f"{name}: {found.__name__}() raised {type(exc).__name__}: {exc}"
+            ) from None
+    if not isinstance(found, Experiment):
+        raise ValueError(
+            f"{name}: not an experiment: subclass hil.experiments.Experiment (see "
+            "hil/experiments/base.py for its hooks)"
+        )
+    return found
 
 
 __all__ = [
