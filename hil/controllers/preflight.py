@@ -81,7 +81,7 @@ def goal_problem(goal: object, n_joints: int) -> str | None:
 
 def terms_problem(controller: Controller, n_joints: int) -> str | None:
     """Why the controller's terms() does not match its term_names (None: it does)."""
-    names = type(controller).term_names
+    names = controller.term_names
     try:
         terms = controller.terms()
     except Exception as exc:  # noqa: BLE001

@@ -2,16 +2,17 @@
 
 clock.py               lock-step and wall clocks on a fixed grid
 timeline.py            the phases of a run by tick (hold, homing, experiment, stop)
+spine.py               every loop's spine: bus, supervisor, torque, record (begin_cycle,
+                       cycle_actuation, end_cycle) and the common part of every exit path
+torque.py              the actuators' torque: on, off when latched (retried), the exit state
+run_record.py          the tick's log rows kept and written, the supervisor's news logged
 start_gate.py          tick 0: refuse to start, or the sample to start from
 homing.py              the slow re-homing after a fault
-robot_model.py         the controller's model of the robot (single links, DYROS-JET's legs)
+experiment_feed.py     what the experiment hands the loop: timeline, reference ring, open-loop
+                       goals, the LQR's contact
 gain_scheduler.py      the LQR gain rescheduled with posture and support, off the 200 Hz path
-controller_factory.py  the configured robot model + a controller choice -> a controller
 request.py             what a run is asked to do; Ctrl-C / SIGTERM
-runner.py              the loop itself (`Loop`, `run_experiment`): each tick, tick 0
-experiment_feed.py     what the experiment hands the loop: the reference ring, the phase's settings
-run_record.py          the tick's log rows kept and written, the supervisor's news logged
-run_end.py             every exit path: torque state, bus closed, metrics, summary.json
+runner.py              one experiment's run on the spine (`Loop`, `run_experiment`)
 """
 
 from hil.controllers.paper_factory import build_controller, joint_params

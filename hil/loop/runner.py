@@ -1,8 +1,8 @@
 """One run of an experiment: the 200 Hz loop from bus to controller to bus, and every exit path.
 
-Each cycle is `read -> watch -> propose -> shape -> write -> log` (in the manner of vulp's
-Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends on the phase
-(hil/loop/timeline.py):
+Each cycle is the spine's (hil/loop/spine.py): `begin_cycle` (read, watch), the phase's
+proposal, `cycle_actuation` (through the supervisor to the bus), `end_cycle` (the record). What
+the phase proposes (hil/loop/timeline.py):
     tick 0      read; the start gate (hil/loop/start_gate.py); torque on (goal = present);
                 plan the re-homing if the link starts away from the experiment's start
     HOLD        hold the present position
@@ -14,12 +14,9 @@ Spine: begin_cycle, cycle_actuation, end_cycle), and what `propose` does depends
                 for an open-loop experiment (identification), the goal in force at its start
                 plus the experiment's own goal offsets, with no controller
     STOP        hold the last goal; then the configured exit torque state
-Every tick reads the bus once, so in lock-step emulation tick k is the plant at k periods.
-Tick 0 has no deadline: the wall clock's grid starts when it ends (`LoopClock.start_grid`).
-
-When the supervisor latches torque_off, the loop turns torque off at once; if the bus does not
-take it (a silent device), it tries again every DISABLE_RETRY_TICKS ticks, not every tick (each
-try costs the driver's timeouts), and on the tick the actuators answer again.
+The controller is any registry entry (hil/controllers/): it is stepped through its contract,
+and one that raises or returns what is not a goal is stopped by the supervisor
+(`controller_fault`: torque off by default), its traceback in events.jsonl.
 
 Every exit path - the end, Ctrl-C, SIGTERM, an exception in the controller or the bus - goes
 through the same `finally`: the configured exit torque state is applied (best effort on every
@@ -27,70 +24,49 @@ joint, whatever the bus raises), the bus is closed, summary.json is written, and
 are closed. The log is written by a process of its own (hil/output/log_process.py), which has
 every tick's rows at the end of that tick and writes what it has when this process ends, however
 it ends; a writer that ends before the run stops the run like a lost bus. With the live view the
-log stays in this process, line-buffered, a tick's rows written during the next tick (see
-`_keep_record`).
+log stays in this process, line-buffered, a tick's rows written during the next tick
+(hil/loop/run_record.py).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import gc
-import math
 import time
 import traceback
-from dataclasses import dataclass
 from typing import Any
 
-import can
 import numpy as np
 
 from controller import PlannedMotion
-from drivers.joint_bus import BusError, JointBus, JointDevices, JointSample, wrench_keys
+from drivers.joint_bus import JointBus, JointDevices, JointSample, wrench_keys
 from hil.config import Config
 from hil.controllers import ControlInput, Controller, build
 from hil.controllers.paper import PaperController
 from hil.controllers.paper_factory import joint_params
 from hil.controllers.preflight import goal_problem, terms_problem
-from hil.controllers.robot_model import robot_model
+from hil.controllers.robot_model import RobotModel, robot_model
 from hil.controllers.setup import controller_setup
 from hil.experiments import Experiment
 from hil.loop.clock import LoopClock, Tick
 from hil.loop.experiment_feed import ExperimentFeed
 from hil.loop.gain_scheduler import GainScheduler
-from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import RunRequest, StopFlag
-from hil.loop.run_end import RunEnd
-from hil.loop.run_record import RunRecording
-from hil.loop.start_gate import StartRefused, start_gate
-from hil.loop.timeline import Phase, Timeline
-from hil.output.log_process import open_run_log
+from hil.loop.run_record import RunRecord
+from hil.loop.spine import LOST_BUS_ERRORS, Spine
+from hil.loop.timeline import Phase
+from hil.output.log_process import LogWriterLost, open_run_log
 from hil.output.records import RunResult
-from hil.output.runlog import RunLog
-from hil.safety import SafeState, Supervisor
+from hil.output.rundir import load_run
+from hil.safety import Supervisor
 from hil.vocabulary import RunEnding, SafetyCause, Termination
-from hil.wiring.hardware import configured_current_limits_a
 
-DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
-# The reference is computed this many ticks ahead (60 s: all of a usual experiment at tick 0),
-# then one tick at a time in a ring of this many rows: a run's memory does not grow with its
-# planned duration, and no later tick computes more than the rows the clock skipped.
-REFERENCE_AHEAD_TICKS = 12_000
-# What a bus raises when it is lost: the JointBus contract says BusError, but a port that
-# vanishes (USB unplugged, emulator gone) surfaces as python-can's or pyserial's own errors
-# (serial.SerialException is an OSError).
-LOST_BUS_ERRORS = (BusError, can.CanError, OSError)
+__all__ = ["LOST_BUS_ERRORS", "Loop", "run_experiment", "sensor_columns", "supervisor_for"]
 
 
-@dataclass
-class _TorqueState:
-    """What the loop knows of the actuators' torque and of its tries to turn it off."""
-
-    on: bool = False
-    retry_tick: int = 0
-    failures: int = 0
-    answered_before: bool = True
-
-
-def _supervisor(config: Config, devices: JointDevices, period_s: float) -> Supervisor:
+def supervisor_for(
+    config: Config, devices: tuple[JointDevices, ...], period_s: float
+) -> Supervisor:
     """The safety supervisor of the configured joints (limits, stiffness, `[safety]`)."""
     return Supervisor(
         config.safety,
@@ -103,8 +79,11 @@ def _supervisor(config: Config, devices: JointDevices, period_s: float) -> Super
     )
 
 
-class Loop(ExperimentFeed, RunRecording, RunEnd):
-    """One run; `run()` returns its result. See the module docstring."""
+class Loop:
+    """One run of an experiment with a controller; `run()` returns its result. See the module
+    docstring. Composed of: the spine (bus, supervisor, torque, record), the experiment's feed
+    (timeline, reference, open-loop goals, LQR contacts), the controller, and on the humanoid
+    the LQR's gain scheduler."""
 
     def __init__(
         self,
@@ -118,70 +97,53 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         self.config = config
         self.request = request
         self.experiment: Experiment = request.experiment
-        self.bus = bus
         self.clock = clock
         self.stop = stop
         self.period = clock.period_s
-        n = len(config.joints)
-        self.n = n
-        self.devices = bus.devices()
-        self.supervisor = _supervisor(config, self.devices, self.period)
+        self.n = n = len(config.joints)
+        supervisor = supervisor_for(config, bus.devices(), self.period)
         low, high = self.experiment.reference_range(n)
-        self.supervisor.check_reference(low, high)
-        self.robot = robot_model(config)
-        self._lqr_contacts = self._lqr_contact_table(request.run_duration_s)
+        supervisor.check_reference(low, high)
+        self.robot: RobotModel = robot_model(config)
+        self.feed = ExperimentFeed(
+            config, self.experiment, request.choice, self.robot, self.period, request.run_duration_s
+        )
         self.controller: Controller = self._build_controller()
-        self.term_names = type(self.controller).term_names
-        self.scheduler: GainScheduler | None = None
-        lqr = request.choice.kind is not None and request.choice.kind.has_lqr
-        if self.robot.rescheduled and lqr and isinstance(self.controller, PaperController):
-            self.scheduler = GainScheduler(
-                self.robot,
-                self.controller.joint_controller,
-                self.period,
-                config.model.gain_reschedule_period_s,
-                wall_clock=not clock.deterministic,
-            )
-        self._support: object = None
-        self._planned_motion: PlannedMotion | None = None  # the experiment's, this tick
-        self._kdist: np.ndarray | None = None
-        self.timeline = Timeline.plan(self.period, config.loop.stop_cycles, request.run_duration_s)
-        self.sensor_columns = sensor_columns(config)
-        self._open_loop = self._open_loop_offsets(config.safety.max_goal_rate_rad_s)
-        self.feedback = None if self._open_loop is not None else self._reference_feedback()
-        self._goal_base: np.ndarray | None = None  # an open-loop experiment's goals start here
-        self.log = open_run_log(
+        self.scheduler = self._gain_scheduler()
+        columns = sensor_columns(config)
+        terms = self.controller.term_names
+        log = open_run_log(
             request.out_dir,
             config.joint_names,
             meta,
-            self.sensor_columns,
+            columns,
             mcap=request.mcap,
             sinks=request.sinks,
-            term_columns=self.term_names,
+            term_columns=terms,
         )
-        # Formatting the rows here: during the next tick's bus wait. The log writer's process
-        # formats them: handed over at the end of their own tick (see `_write_kept_record`).
-        self._rows_in_wait = isinstance(self.log, RunLog)
-        self._kept: tuple[tuple, tuple] | None = None  # the last tick's rows, not yet written
-        self._handed_over_s = 0.0  # how long handing the last tick's rows over took
-        self.homing: HomingPlan | None = None
-        self.references = np.zeros((0, n))  # a ring: tick k's row is at k % len
-        self._reference_filled = 0  # the first tick whose row is not in the ring yet
-        self.torque = _TorqueState()
-        self.current_limits = np.full(n, math.nan)
-        self.ending = RunEnding(Termination.COMPLETED)
-        self.opened = False
-        self.torque_off_failed = False  # the exit path's torque off was not taken
-        self.ticks_done = 0
-        self._hold_goal = np.full(n, math.nan)
-        self._last_goal = np.full(n, math.nan)
-        self._last_link = np.full(n, math.nan)
-        self._no_goal = np.full(n, math.nan)  # logged on ticks that send nothing
-        self._zeros = np.zeros(n)
+        self.spine = Spine(
+            config,
+            bus,
+            clock,
+            supervisor,
+            log,
+            RunRecord(log, columns, terms, n),
+            reboot_first=request.reboot_first,
+            say=request.on_event,
+            on_torque_on=self._on_torque_on,
+            check_settings=self._check_settings if request.choice.uses_kdist else None,
+            overruns=request.overruns,
+        )
+        self.supervisor = supervisor
+        self.log = log
+        # the experiment's phase state the controller sees, and where it stepped last
+        self._support: object = None
+        self._planned_motion: PlannedMotion | None = None
+        self._kdist: np.ndarray | None = None
         self._controller_started = False
         self._terms_checked = False  # the controller's terms() against its term_names, once
         self._last_step_tick = -1
-        self._logged_events = self._logged_notices = 0
+        self._last_link = np.full(n, np.nan)
 
     def _build_controller(self) -> Controller:
         """The chosen controller for this robot, at the experiment's start posture."""
@@ -189,29 +151,31 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             self.config,
             self.period,
             self.robot,
-            np.broadcast_to(self.experiment.reference(0.0), (self.n,)),
-            self._lqr_contacts[0],
+            self.feed.start_reference,
+            self.feed.lqr_contacts[0],
         )
         return build(self.request.choice, setup, self.config.controller.params)
+
+    def _gain_scheduler(self) -> GainScheduler | None:
+        """The paper's LQR rescheduled with posture and contact, on a robot whose Sm changes."""
+        kind = self.request.choice.kind
+        controller = self.controller
+        if not (self.robot.rescheduled and kind is not None and kind.has_lqr):
+            return None
+        assert isinstance(controller, PaperController)
+        return GainScheduler(
+            self.robot,
+            controller.joint_controller,
+            self.period,
+            self.config.model.gain_reschedule_period_s,
+            wall_clock=not self.clock.deterministic,
+        )
 
     # --- the run -------------------------------------------------------------------------------
     def run(self) -> RunResult:
         started = time.perf_counter()
         try:
-            self.bus.open()
-            self.opened = True
-            self.log.event(0.0, "open", f"bus open: {', '.join(self.config.joint_names)}")
-            self._cycles()
-        except StartRefused as exc:
-            self.ending = RunEnding(Termination.START_REFUSED, str(exc))
-            self.log.event(0.0, "start_refused", str(exc))
-        except LOST_BUS_ERRORS as exc:
-            self.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
-            self.log.event(self._now(), "bus_failure", f"{type(exc).__name__}: {exc}")
-        except Exception as exc:
-            self.ending = RunEnding(Termination.ERROR, f"{type(exc).__name__}: {exc}")
-            self.log.event(self._now(), "error", self.ending.text)
-            raise
+            self.spine.run(self._cycles)
         finally:
             self._finish(time.perf_counter() - started)
         return self.result
@@ -230,22 +194,20 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             gc.unfreeze()
 
     def _ticks(self) -> None:
-        while self.ticks_done < self.timeline.end:
+        state = self.spine.state
+        while state.ticks_done < self.feed.timeline.end:
             if self.stop.reason is not None:
-                self.ending = RunEnding(Termination.INTERRUPTED, self.stop.reason)
+                state.ending = RunEnding(Termination.INTERRUPTED, self.stop.reason)
                 return
             tick = self.clock.next_tick()
             # The clock's grid index: after a missed deadline the wall clock skips ticks, and the
             # reference, the faults and the log follow the grid, not the loop's count.
-            if tick.index >= self.timeline.end:
+            if tick.index >= self.feed.timeline.end:
                 break
             self._cycle(tick)
-            self.ticks_done = tick.index + 1
-            if tick.index == 0:  # the start-up tick is not paced (hil/loop/clock.py)
-                self.clock.start_grid()
         first = self.supervisor.first_trip
         if first is not None:
-            self.ending = RunEnding(Termination.SAFETY_STOP, f"{first.cause} ({first.action})")
+            state.ending = RunEnding(Termination.SAFETY_STOP, f"{first.cause} ({first.action})")
 
     def _cycle(self, tick: Tick) -> None:
         scheduler = self.scheduler
@@ -259,103 +221,33 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             scheduler.tick_active(False)
 
     def _active_cycle(self, tick: Tick) -> None:
-        k = tick.index
-        t_read = time.perf_counter()
-        self.bus.start_read()
-        try:  # the last tick's rows, while the answers travel
-            wait_log_s = self._write_kept_record() if self._rows_in_wait else 0.0
-        finally:  # whatever happened, the answers are collected: no transaction left open
-            sample = self.bus.finish_read()
-        t_compute = time.perf_counter()
-        log_s = wait_log_s if self._rows_in_wait else self._handed_over_s
-        if k == 0:
-            sample = self._start(sample)
-        self._watch(tick, sample)
-        if k >= self._reference_filled:  # (the clock skipped more ticks than the ring holds)
-            self._reference_ahead(k - 1)
-        proposed, reference = self._propose(k, sample, self.references[k % len(self.references)])
-        goal = self.supervisor.command(proposed, sample) if self.torque.on else None
-        phase = self.timeline.phase(k)
-        if proposed is not None and phase is Phase.EXPERIMENT and self._controller_started:
+        k, spine, feed = tick.index, self.spine, self.feed
+        sample = spine.begin_cycle(tick)
+        proposed, reference = self._propose(k, sample, feed.reference_row(k))
+        phase = feed.timeline.phase(k)
+        goal = spine.cycle_actuation(proposed)
+        stepped = proposed is not None and phase is Phase.EXPERIMENT and self._controller_started
+        if stepped and feed.open_loop is None:
             self.controller.applied(goal if goal is not None else proposed)
-        if goal is not None:
-            self.bus.write(goal)
-            self._last_goal = goal
-        self._log_safety()
-        t_done = time.perf_counter()
-        timing = (k, t_compute - t_read - wait_log_s, t_done - t_compute, 0.0, log_s, tick.time_s)
-        self._keep_record(tick, sample, reference, goal, phase, timing)
-        if not self._rows_in_wait:  # the writer's process has them now: nothing to lose
-            self._handed_over_s = self._write_kept_record()
-        self._reference_ahead(k)
+        terms = self.controller.terms() if self._controller_started else None
+        spine.end_cycle(reference, phase, terms)
+        feed.fill_ahead(k)
         on_progress = self.request.on_progress
         if on_progress is not None and k % int(round(1.0 / self.period)) == 0:
-            on_progress(tick.time_s, self.timeline.end * self.period)
+            on_progress(tick.time_s, feed.timeline.end * self.period)
 
-    # --- tick 0 ------------------------------------------------------------------------------
-    def _start(self, sample: JointSample) -> JointSample:
-        sample = start_gate(
-            self.config, sample, self.bus, self.devices, self.request.reboot_first, self.log.event
-        )
-        reported = np.asarray(self.bus.current_limits_a(), dtype=float)
-        configured = np.array(configured_current_limits_a(self.config))
-        self.current_limits = np.where(np.isfinite(reported), reported, configured)
-        self.supervisor.set_current_limits(self.current_limits)
-        if self.config.safety.current_guard and not np.isfinite(self.current_limits).all():
-            self.log.event(
-                0.0,
-                "current_guard_inactive",
-                "the software overload guard cannot act: an actuator's current limit is "
-                "unknown (set torque_limit_a in the configuration)",
-            )
-        self.bus.enable()
-        self.torque.on = True
-        self._hold_goal = sample.motor_angle_rad.copy()
-        self._last_goal = self._hold_goal.copy()
-        self.log.event(0.0, "torque_on", "torque on; holding the present position")
-        start = np.broadcast_to(self.experiment.reference(0.0), (self.n,))
-        self.homing = plan_homing(sample.link_angle_rad, start)
-        if self.homing is not None:
-            self.timeline = self.timeline.with_homing(self.homing.ticks(self.period))
-            self.log.event(0.0, "homing", self.homing.describe())
-        ahead = min(self.timeline.end, REFERENCE_AHEAD_TICKS)
-        self.references = np.empty((ahead, self.n))
-        self._reference_filled = 0
-        self._reference_ahead(-1)
-        if self.feedback is not None:
-            self.log.event(0.0, "reference_feedback", self.feedback.describe())
-        return sample
+    # --- tick 0 (the spine's hooks) ------------------------------------------------------------
+    def _on_torque_on(self, sample: JointSample) -> None:
+        homing = self.feed.plan_start(sample.link_angle_rad)
+        if homing is not None:
+            self.log.event(0.0, "homing", homing.describe())
+        if self.feed.feedback is not None:
+            self.log.event(0.0, "reference_feedback", self.feed.feedback.describe())
+
+    def _check_settings(self, supervisor: Supervisor) -> None:
+        supervisor.check_settings(self.request.choice.kdist)
 
     # --- each tick ---------------------------------------------------------------------------
-    def _watch(self, tick: Tick, sample: JointSample) -> None:
-        k, time_s = tick.index, tick.time_s
-        overrun = self._injected_overrun(time_s)
-        if tick.skipped or overrun:
-            self.supervisor.note_overrun(k, time_s, tick.skipped)
-        for note in sample.notes:
-            self.log.event(time_s, "bus_note", note, tick=k)
-        self.supervisor.observe(k, time_s, sample)
-        self._log_safety()
-        if k == 0:  # this tick's sample predates the enable: expect torque from the next one on
-            self.supervisor.torque_enabled(self._hold_goal)
-            if self.request.choice.uses_kdist:
-                self.supervisor.check_settings(self.request.choice.kdist)
-                self._log_safety()
-        self._torque_off_if_latched(k, time_s, sample)
-
-    def _torque_off_if_latched(self, k: int, time_s: float, sample: JointSample) -> None:
-        torque = self.torque
-        answered = bool(sample.motor_valid.all())
-        due = k >= torque.retry_tick or (answered and not torque.answered_before)
-        if self.supervisor.state == SafeState.TORQUE_OFF and torque.on and due:
-            why = "safety stop" + (f" (try {torque.failures + 1})" if torque.failures else "")
-            torque.on = not self._disable(time_s, why, quiet=torque.failures > 0)
-            self.supervisor.torque_disabled()
-            if torque.on:
-                torque.failures += 1
-                torque.retry_tick = k + DISABLE_RETRY_TICKS
-        torque.answered_before = answered
-
     def _propose(
         self, k: int, sample: JointSample, reference: np.ndarray
     ) -> tuple[np.ndarray | None, np.ndarray]:
@@ -363,11 +255,12 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         reference it followed (the table's, or as the experiment's feedback corrected it)."""
         link = np.where(sample.link_valid, sample.link_angle_rad, self._last_link)
         self._last_link = link
-        phase = self.timeline.phase(k)
+        state = self.spine.state
+        phase = self.feed.timeline.phase(k)
         if phase is Phase.STOP:
-            return self._last_goal, reference
+            return state.last_goal, reference
         if phase is Phase.HOLD:
-            return self._hold_goal, reference
+            return state.hold_goal, reference
         if phase is Phase.HOMING:
             return reference, reference  # the actuator's own servo follows the ramp
         n = self.n
@@ -377,21 +270,58 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             or np.count_nonzero(np.isfinite(link)) != n
         ):
             return None, reference
-        if self._open_loop is not None:
-            return self._open_loop_goal(k), reference
+        assert state.last_goal is not None
+        if self.feed.open_loop is not None:
+            return self.feed.open_loop_goal(k, state.last_goal), reference
         self._schedule(k, link)
-        if self.feedback is not None:
-            time_s = self.timeline.experiment_time_s(k)
-            reference = self.feedback.reference(time_s, reference, link, sample.motor_angle_rad)
+        feedback = self.feed.feedback
+        if feedback is not None:
+            time_s = self.feed.timeline.experiment_time_s(k)
+            reference = feedback.reference(time_s, reference, link, sample.motor_angle_rad)
+        return self._step(k, sample, link, reference, state.last_goal), reference
+
+    def _schedule(self, k: int, link: np.ndarray) -> None:
+        """What the experiment's phase sets: the support state (gravity compensator), the LQR's
+        contact (Sm and the gain), a walk's planned motion and a Kdist schedule (the controller
+        ramps between values)."""
+        feed = self.feed
+        time_s = feed.timeline.experiment_time_s(k)
+        support = self.experiment.support(time_s)
+        if support != self._support:
+            self.robot.set_support(support)
+            self._support = support
+        if self.scheduler is not None:
+            lead = self.scheduler.lead_ticks
+            self.scheduler.update(k, link, feed.lqr_contact(k), feed.lqr_contact(k + lead))
+        motion = self.experiment.planned_motion(time_s)  # a walk's plan: GC load, LQR
+        self.robot.set_planned_motion(motion)
+        self._planned_motion = motion
+        choice = self.request.choice
+        if choice.uses_kdist:
+            kdist = self.experiment.kdist_at(time_s, choice.kdist)
+            if kdist is not None and (self._kdist is None or np.any(kdist != self._kdist)):
+                self.controller.set_kdist(kdist)
+                self._kdist = np.array(kdist, dtype=float)
+
+    def _step(
+        self,
+        k: int,
+        sample: JointSample,
+        link: np.ndarray,
+        reference: np.ndarray,
+        goal_in_force: np.ndarray,
+    ) -> np.ndarray | None:
+        """The controller's goal through its contract (None: it broke it, the supervisor
+        stops the run)."""
         state = ControlInput(
             tick=k,
-            time_s=self.timeline.experiment_time_s(k),
+            time_s=self.feed.timeline.experiment_time_s(k),
             motor_angle_rad=sample.motor_angle_rad,
             link_angle_rad=link,
             motor_velocity_rad_s=sample.motor_velocity_rad_s,
             motor_current_a=sample.motor_current_a,
             reference_rad=reference,
-            goal_in_force_rad=self._last_goal,
+            goal_in_force_rad=goal_in_force,
             ticks_since_step=k - self._last_step_tick if self._controller_started else 0,
             support=self._support,
             planned_motion=self._planned_motion,
@@ -405,15 +335,15 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
             goal = controller.step(state)
         except Exception as exc:  # noqa: BLE001 - the controller's fault: torque off, recorded
             self._controller_fault(state.time_s, "raised", exc)
-            return None, reference
-        problem = goal_problem(goal, n)
+            return None
+        problem = goal_problem(goal, self.n)
         if problem is None and not self._terms_checked:
-            problem = terms_problem(controller, n)
+            problem = terms_problem(controller, self.n)
             self._terms_checked = True
         if problem is not None:
             self._controller_fault(state.time_s, problem)
-            return None, reference
-        return goal, reference
+            return None
+        return goal
 
     def _controller_fault(self, time_s: float, what: str, exc: Exception | None = None) -> None:
         """The controller broke its contract: the supervisor's CONTROLLER_FAULT (torque off by
@@ -421,22 +351,67 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
         if exc is not None:
             what = f"{what} {type(exc).__name__}: {exc}"
             trace = "".join(traceback.format_exception(exc))
-            self.log.event(time_s, "controller_traceback", trace, tick=self.ticks_done)
+            self.log.event(time_s, "controller_traceback", trace, tick=self.spine.state.ticks_done)
         self.supervisor.trip(
             SafetyCause.CONTROLLER_FAULT, None, f"controller {self.request.choice.name}: {what}"
         )
-        self._log_safety()
+        self.spine.news.log_new()
 
-    def _injected_overrun(self, time_s: float) -> bool:
-        for start, duration in self.request.overruns:
-            if start <= time_s < start + max(duration, self.period):
-                if not self.clock.deterministic:
-                    time.sleep(self.period * 1.5)  # really miss the deadline
-                return True
-        return False
+    # --- every exit path -----------------------------------------------------------------------
+    def _finish(self, wall_time_s: float) -> None:
+        spine, state = self.spine, self.spine.state
+        try:
+            spine.record.write_kept()
+        except LogWriterLost as exc:  # the rows of the end are lost with the writer: say so
+            if state.ending.ok:
+                state.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
+        if self.scheduler is not None:
+            self.scheduler.close()
+        exit_notes = spine.close()
+        metrics = self._metrics()
+        choice = self.request.choice
+        feed = self.feed
+        summary = {
+            "experiment": self.experiment.name,
+            "controller": choice.name,
+            "controller_label": choice.label,
+            "kdist": choice.kdist if choice.uses_kdist else None,
+            "termination": state.ending.text,
+            "ticks": state.ticks_done,
+            "wall_time_s": wall_time_s,
+            "exit": exit_notes,
+            **spine.safety_summary(),
+            "homing": feed.homing.to_dict() if feed.homing is not None else None,
+            "experiment_start_s": feed.timeline.experiment_start_s,
+            "current_limit_a": spine.current_limits,
+            "gain_schedule": self.scheduler.schedule.record() if self.scheduler else None,
+            "reference_feedback": feed.feedback.describe() if feed.feedback else None,
+            "metrics": metrics,
+        }
+        self.log.write_summary(summary)
+        self.log.close()
+        self.result = RunResult(
+            self.request.out_dir,
+            state.ending,
+            metrics,
+            list(self.supervisor.events),
+            state.ticks_done,
+            wall_time_s,
+            tuple(exit_notes),
+            spine.torque.exit_failed,
+        )
 
-    def _now(self) -> float:
-        return self.ticks_done * self.period
+    def _metrics(self) -> dict[str, Any]:
+        if self.log.rows < 2:
+            return {}
+        self.log.close()  # flushed and complete before it is read back
+        try:
+            run = load_run(self.log.dir)  # summary.json comes after the metrics: say when the
+            # experiment's timeline started here
+            summary = {"experiment_start_s": self.feed.timeline.experiment_start_s}
+            return self.experiment.metrics(dataclasses.replace(run, summary=summary))
+        except (ValueError, KeyError) as exc:
+            return {"error": str(exc)}
 
 
 def sensor_columns(config: Config) -> tuple[str, ...]:

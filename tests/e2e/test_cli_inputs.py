@@ -74,7 +74,7 @@ BAD_ARGUMENTS = {
     "zero duration": (["--duration", "0"], "duration"),
     "unknown fault": (["--inject", "meteor@1"], "unknown fault"),
     "bad fault time": (["--inject", "overrun@soon"], "overrun@START"),
-    "unknown controller": (["--controller", "lqr+magic"], "invalid choice"),
+    "unknown controller": (["--controller", "lqr+magic"], "unknown controller 'lqr+magic'"),
     # judged before the first byte, not after torque is on
     "a duration no run can have": (["--duration", "1e9"], "--duration"),
     "kdist above max_kdist": (["--kdist", "5"], "max_kdist"),

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import hil.loop.runner
+import hil.loop.torque
 from hil.config import load_config
 from hil.experiments import get_experiment
 from hil.loop import LockstepClock, RunRequest, run_experiment
@@ -111,7 +112,7 @@ def test_a_permanently_silent_actuator_costs_one_read_timeout_per_tick_not_more(
     read_timeout_s = 0.102
     assert np.median(silent) < 1.3 * read_timeout_s
     # one torque-off try (write + timeout) per DISABLE_RETRY_TICKS, not one per tick
-    tries = 1 + (len(silent) - 3) // hil.loop.runner.DISABLE_RETRY_TICKS
+    tries = 1 + (len(silent) - 3) // hil.loop.torque.DISABLE_RETRY_TICKS
     assert silent.sum() < (len(silent) + tries) * 1.3 * read_timeout_s
 
 

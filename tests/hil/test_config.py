@@ -69,7 +69,6 @@ def test_hil_config_prints_a_file_that_loads(capsys, tmp_path: Path) -> None:
         (_with("node_id = 10", "node_id = 5"), r"duplicate CAN node ID .* \[5\]"),
         (_with('on_exit = "torque_off"', 'on_exit = "pray"'), r"on_exit: Input should be 'hold'"),
         (_with('on_exit = "torque_off"', 'on_exit = "back_off"'), r"on_exit: must be"),
-        (_with('name = "gc+lqr+dob"', 'name = "mpc"'), r"\[controller\] name: Input should be"),
         (_with("kdist = 1.0", "kdist = -1.0"), r"\[controller\] kdist: Input should be greater"),
         (_with('clock = "lockstep"', 'clock = "sundial"'), "'lockstep' or 'realtime'"),
         (_with("seed = 0", "seed = -1"), r"\[emulator\] seed: Input should be greater"),

@@ -39,7 +39,9 @@ def test_the_writers_process_writes_the_same_files_as_the_loops_own(
     monkeypatch.setattr(
         hil.loop.runner,
         "open_run_log",
-        lambda *args, mcap, sinks: in_loop(*args, mcap=mcap, sinks=sinks),
+        lambda *args, mcap, sinks, term_columns: in_loop(
+            *args, mcap=mcap, sinks=sinks, term_columns=term_columns
+        ),
     )
     result, same = run_in_process(CONFIG, IMPACT, "gc+lqr+dob", tmp_path / "loop", duration_s=1)
     assert result.ok
@@ -83,13 +85,13 @@ _KILLED_LOOP = textwrap.dedent(
     """
     import os, sys
     from pathlib import Path
-    import hil.loop.runner
+    import hil.loop.run_record
     from hil.config import load_config
     from hil.experiments import IMPACT
     from tests.support.rig import run_in_process
 
     handed = os.open(sys.argv[2], os.O_WRONLY | os.O_CREAT | os.O_APPEND)
-    real = hil.loop.runner.Loop._write_kept_record
+    real = hil.loop.run_record.RunRecord.write_kept
 
     def write(self):
         kept = self._kept
@@ -98,7 +100,7 @@ _KILLED_LOOP = textwrap.dedent(
             os.write(handed, b"%d\\n" % kept[0][0])
         return seconds
 
-    hil.loop.runner.Loop._write_kept_record = write
+    hil.loop.run_record.RunRecord.write_kept = write
     run_in_process(load_config(), IMPACT, "pid", Path(sys.argv[1]), duration_s=60)
     """
 )

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import hil.loop.runner
+import hil.loop.torque
 from drivers.joint_bus import BusError, JointSample
 from hil.config import load_config
 from hil.experiments import CONTACT, IMPACT
@@ -21,7 +22,6 @@ from tests.support.rig import (
     PERIOD_S,
     assert_log_complete,
     config_with,
-    load_run,
     run_in_process,
 )
 
@@ -63,31 +63,37 @@ class _FailingController:
     def __getattr__(self, name: str) -> object:
         return getattr(self._inner, name)
 
-    def step(self, *args: np.ndarray) -> np.ndarray:
+    def step(self, state: object) -> np.ndarray:
         self._steps += 1
         if self._steps == self._fail_at:
             raise ZeroDivisionError("a controller bug (injected by the test)")
-        return self._inner.step(*args)
+        return self._inner.step(state)
 
 
 def test_an_exception_in_the_controller_leaves_torque_off_and_the_log_complete(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    real_build = hil.loop.runner.build_controller
+    """The controller's fault, not the run's: the supervisor's controller_fault turns torque off
+    on the next tick, the run goes on to its end with torque off (a safety stop), and the
+    traceback is in events.jsonl."""
+    real_build = hil.loop.runner.build
     monkeypatch.setattr(
         hil.loop.runner,
-        "build_controller",
+        "build",
         lambda *args: _FailingController(real_build(*args), fail_at=100),
     )
     bus = in_process_bus(CONFIG, CONTACT)
-    with pytest.raises(ZeroDivisionError):
-        run_in_process(CONFIG, CONTACT, "gc+lqr+dob", tmp_path, duration_s=2.0, bus=bus)
-    run = load_run(tmp_path)
-    assert run.termination == "error: ZeroDivisionError: a controller bug (injected by the test)"
+    result, run = run_in_process(CONFIG, CONTACT, "gc+lqr+dob", tmp_path, duration_s=2.0, bus=bus)
+    assert run.termination == "safety stop: controller_fault (torque_off)"
     assert_log_complete(run)
-    assert run.summary["ticks"] == 5 + 99  # stop cycles, then 99 good steps
-    assert run.events_of("error") and run.summary["exit"][0] == "torque off"
-    assert not _device(bus).torque_enabled
+    (fault,) = run.events_of("controller_fault")
+    assert fault["tick"] == 5 + 99  # stop cycles, then 99 good steps
+    (trace,) = run.events_of("controller_traceback")
+    assert "ZeroDivisionError: a controller bug" in trace["message"]
+    torque_off = run.events_of("torque_off")[0]
+    assert torque_off["time_s"] == pytest.approx(fault["time_s"] + PERIOD_S)
+    assert run.columns["torque_enabled"][fault["tick"] + 2] == 0
+    assert run.summary["exit"][0] == "torque off" and not _device(bus).torque_enabled
 
 
 def test_a_lost_bus_ends_the_run_with_a_complete_log_and_says_torque_could_not_be_set(
@@ -143,4 +149,4 @@ def test_a_permanently_silent_actuator_is_reported_as_unreachable(tmp_path: Path
     assert len(run.events_of("torque_off_failed")) == 2  # the first try (retries quiet) + exit
     assert _device(bus).torque_enabled  # it never heard the torque off
     silent_ticks = run.summary["ticks"] - round(1.0 / PERIOD_S)
-    assert silent_ticks > 3 * hil.loop.runner.DISABLE_RETRY_TICKS
+    assert silent_ticks > 3 * hil.loop.torque.DISABLE_RETRY_TICKS

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import hil.loop.runner
+import hil.loop.experiment_feed
 from hil.config import load_config
 from hil.experiments import CONTACT, IMPACT
 from hil.loop import LockstepClock, RunRequest, StopFlag, run_experiment
@@ -50,7 +50,7 @@ def test_a_run_planned_for_months_takes_the_memory_of_a_short_one(tmp_path: Path
 
 
 def test_the_reference_past_the_horizon_is_the_experiments(tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.setattr(hil.loop.runner, "REFERENCE_AHEAD_TICKS", 50)
+    monkeypatch.setattr(hil.loop.experiment_feed, "REFERENCE_AHEAD_TICKS", 50)
     config = load_config()
     _result, run = run_in_process(config, CONTACT, "gc+lqr+dob", tmp_path, duration_s=3.0)
     time = run.columns["time_s"]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-import hil.loop.runner
+import hil.loop.run_record
 from drivers.joint_bus import JointSample
 from hil.config import load_config
 from hil.experiments import IMPACT
@@ -34,14 +34,14 @@ def test_each_row_holds_its_own_ticks_values(tmp_path: Path, monkeypatch) -> Non
     bus.__class__ = _RecordingBus
     bus.samples = []
     d_hats: dict[int, float] = {}
-    real_keep = hil.loop.runner.Loop._keep_record
+    real_keep = hil.loop.run_record.RunRecord.keep
 
-    def keep(self, tick, sample, reference, goal, phase, timing):
-        if self._controller_started:
-            d_hats[tick.index] = float(self.controller.terms.d_hat[0])
-        real_keep(self, tick, sample, reference, goal, phase, timing)
+    def keep(self, tick, sample, reference, goal, phase, state, terms, timing):
+        if terms is not None:
+            d_hats[tick.index] = float(terms["d_hat_rad"][0])
+        real_keep(self, tick, sample, reference, goal, phase, state, terms, timing)
 
-    monkeypatch.setattr(hil.loop.runner.Loop, "_keep_record", keep)
+    monkeypatch.setattr(hil.loop.run_record.RunRecord, "keep", keep)
     result, run = run_in_process(CONFIG, IMPACT, "gc+lqr+dob", tmp_path, duration_s=1.5, bus=bus)
     assert result.ok
     assert_log_complete(run)
