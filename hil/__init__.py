@@ -3,8 +3,15 @@ on flexible-joint, position-controlled actuators, on hardware and on a byte-exac
 
 The public surface, one page (each name is documented where it is defined):
 
+    open_robot, Robot, RobotLoop, Setup, RunStopped
+                        the robot a configuration describes, a run of an experiment on it,
+                        and your own 200 Hz loop through the supervisor (hil/api.py)
+    RunResult           how a run ended, its metrics, its directory, its exit status
+    JointSample         one reading of every joint, in SI units (drivers/joint_bus.py)
     Controller, ControllerParams, ControllerSetup, ControlInput
                         the controller contract: write your own (hil/controllers/contract.py)
+    Experiment, World   the experiment contract (hil/experiments/base.py)
+    ConfigError         what bad input raises, before anything opens
     __version__         the installed version
 
 Everything is imported on first use, so that `import hil` stays cheap and importing one
@@ -31,6 +38,16 @@ except metadata.PackageNotFoundError:  # a source tree that was not installed
 
 # name -> the module that defines it
 _EXPORTS = {
+    "ConfigError": "hil.config",
+    "Experiment": "hil.experiments.base",
+    "JointSample": "drivers.joint_bus",
+    "Robot": "hil.api",
+    "RobotLoop": "hil.api",
+    "RunResult": "hil.output.records",
+    "RunStopped": "hil.api",
+    "Setup": "hil.api",
+    "World": "hil.experiments.base",
+    "open_robot": "hil.api",
     "ControlInput": "hil.controllers.contract",
     "Controller": "hil.controllers.contract",
     "ControllerParams": "hil.controllers.contract",
@@ -38,20 +55,35 @@ _EXPORTS = {
 }
 
 __all__ = [
+    "ConfigError",
     "ControlInput",
     "Controller",
     "ControllerParams",
     "ControllerSetup",
+    "Experiment",
+    "JointSample",
+    "Robot",
+    "RobotLoop",
+    "RunResult",
+    "RunStopped",
+    "Setup",
+    "World",
     "__version__",
+    "open_robot",
 ]
 
 if TYPE_CHECKING:
+    from drivers.joint_bus import JointSample
+    from hil.api import Robot, RobotLoop, RunStopped, Setup, open_robot
+    from hil.config import ConfigError
     from hil.controllers.contract import (
         ControlInput,
         Controller,
         ControllerParams,
         ControllerSetup,
     )
+    from hil.experiments.base import Experiment, World
+    from hil.output.records import RunResult
 
 
 def __getattr__(name: str) -> object:

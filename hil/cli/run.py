@@ -14,8 +14,8 @@ from pathlib import Path
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError, robot_of
-from hil.controllers import ControllerLoadError, controller_params, resolve
-from hil.controllers.preflight import preflight
+from hil.controllers import ControllerLoadError
+from hil.controllers.choice import choose
 from hil.experiments import Experiment, get_experiment
 from hil.loop import StopFlag, duration_problem
 from hil.output.channels import MessageSink
@@ -163,20 +163,17 @@ def _check_timeline(args: argparse.Namespace, faults: tuple, overruns: tuple) ->
 
 
 def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) -> ControllerChoice:
-    """The controller of a single run (a registry name or a plug-in, resolved and its
-    parameters checked now); an open-loop experiment (identify) has none: the actuator's own
-    position control follows its goals, which is what `pid` names."""
+    """The controller of a single run (a registry name or a plug-in, resolved, its parameters
+    and a plug-in's first steps checked now: hil/controllers/choice.py); an open-loop
+    experiment (identify) has none: the actuator's own position control follows its goals,
+    which is what `pid` names."""
     if not experiment.open_loop:
         given = "--controller" if args.controller else f"{config.source} [controller] name"
-        spec = args.controller or config.controller.name
         try:
-            choice = ControllerChoice(resolve(spec), config.controller.kdist)
-            controller_params(choice.ref, choice, config.controller.params)
+            choice = choose(args.controller or config.controller.name, config, experiment)
         except ControllerLoadError as exc:
             raise ConfigError(f"{given}: {exc}") from None
         _check_choice(args, config, choice)
-        if not choice.ref.built_in:
-            _preflight(config, experiment, choice, given)
         return choice
     if args.controller not in (None, str(ControllerKind.PID)) or args.kdist is not None:
         raise ConfigError(
@@ -184,15 +181,6 @@ def _choice(args: argparse.Namespace, config: Config, experiment: Experiment) ->
             "and --kdist"
         )
     return ControllerChoice(ControllerKind.PID)
-
-
-def _preflight(
-    config: Config, experiment: Experiment, choice: ControllerChoice, given: str
-) -> None:
-    """A plug-in tried on a copy before anything opens (hil/controllers/preflight.py)."""
-    problem = preflight(config, experiment, choice)
-    if problem is not None:
-        raise ConfigError(f"{given} {choice.ref.spec.removeprefix('file:')}: {problem}")
 
 
 def _check_choice(args: argparse.Namespace, config: Config, choice: ControllerChoice) -> None:

@@ -109,24 +109,34 @@ class Spine:
 
     # --- the run's frame -------------------------------------------------------------------
     def run(self, cycles: Callable[[], None]) -> None:
-        """Open the bus and run `cycles`; how the run ended if something raised (the start gate
-        refused, the bus was lost: said and kept; an error: said and re-raised)."""
-        state = self.state
+        """Open the bus and run `cycles`; how the run ended if something raised (`ended_by`)."""
         try:
-            self.bus.open()
-            state.opened = True
-            self.log.event(0.0, "open", f"bus open: {', '.join(self.config.joint_names)}")
+            self.open()
             cycles()
-        except StartRefused as exc:
+        except Exception as exc:
+            if not self.ended_by(exc):
+                raise
+
+    def open(self) -> None:
+        self.bus.open()
+        self.state.opened = True
+        self.log.event(0.0, "open", f"bus open: {', '.join(self.config.joint_names)}")
+
+    def ended_by(self, exc: Exception) -> bool:
+        """The run ended by `exc`: said and recorded; True when that is an ending of the run
+        (the start gate refused, the bus was lost), False for an error (to be re-raised)."""
+        state = self.state
+        if isinstance(exc, StartRefused):
             state.ending = RunEnding(Termination.START_REFUSED, str(exc))
             self.log.event(0.0, "start_refused", str(exc))
-        except LOST_BUS_ERRORS as exc:
+            return True
+        if isinstance(exc, LOST_BUS_ERRORS):
             state.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
             self.log.event(self.now_s, "bus_failure", f"{type(exc).__name__}: {exc}")
-        except Exception as exc:
-            state.ending = RunEnding(Termination.ERROR, f"{type(exc).__name__}: {exc}")
-            self.log.event(self.now_s, "error", state.ending.text)
-            raise
+            return True
+        state.ending = RunEnding(Termination.ERROR, f"{type(exc).__name__}: {exc}")
+        self.log.event(self.now_s, "error", state.ending.text)
+        return False
 
     @property
     def now_s(self) -> float:

@@ -36,6 +36,14 @@ class RunResult:
     def termination(self) -> Termination:
         return self.ending.termination
 
+    @property
+    def exit_status(self) -> int:
+        """What `hil run` exits with for this run: 0 completed, 1 a safety stop, a failure or an
+        interrupt, 3 torque could not be turned off (hil/cli/exit_codes.py)."""
+        if self.torque_off_failed:
+            return 3
+        return 0 if self.ok else 1
+
 
 @dataclass(frozen=True)
 class RunEntry:

@@ -89,3 +89,19 @@ def test_every_example_is_tested() -> None:
     tested = Path(__file__).read_text()
     for example in EXAMPLES.glob("*.py"):
         assert example.name in tested, f"examples/{example.name} is not run by any test"
+
+
+def test_the_raw_loop_example_runs(tmp_path: Path) -> None:
+    done = _script("sine_loop.py", tmp_path)
+    assert done.returncode == 0, done.stderr
+    (run,) = tmp_path.iterdir()
+    summary = _summary(run)
+    assert summary["termination"] == "completed" and summary["exit"] == ["torque off"]
+    assert summary["ticks"] == 5 + 800 + 5  # the hold, 4 s of yours, the stop cycles
+
+
+def test_the_python_pd_example_runs(tmp_path: Path) -> None:
+    done = _script("pd_gravity_python.py", tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "impact: completed" in done.stdout and "fell = False" in done.stdout
+    assert len(list(tmp_path.iterdir())) == 3

@@ -69,6 +69,17 @@ HIL_LAYERS = {
         "hil.loop",
         "hil.session",
     },
+    "hil.api": {
+        "hil.vocabulary",
+        "hil.controllers",
+        "hil.config",
+        "hil.output",
+        "hil.experiments",
+        "hil.safety",
+        "hil.wiring",
+        "hil.loop",
+        "hil.session",
+    },
     "hil.cli": {
         "hil.plugins",
         "hil.vocabulary",
