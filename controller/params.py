@@ -188,13 +188,6 @@ class ControllerParams:
             if np.any(compliance <= 0):
                 raise ValueError(f"gc_compliance_rad_per_nm must be > 0, got {compliance}")
             object.__setattr__(self, "gc_compliance_rad_per_nm", compliance)
-
-    @property
-    def compensator_compliance_rad_per_nm(self) -> np.ndarray:
-        """C of (8) per joint: gc_compliance_rad_per_nm, or the paper's K^-1."""
-        if self.gc_compliance_rad_per_nm is None:
-            return 1.0 / self.joints.stiffness_nm_per_rad
-        return np.asarray(self.gc_compliance_rad_per_nm)
         if self.kdist_reference not in KDIST_REFERENCES:
             raise ValueError(
                 f"kdist_reference must be one of {KDIST_REFERENCES}, got {self.kdist_reference!r}"
@@ -210,6 +203,13 @@ class ControllerParams:
                     "the servo cascade cannot be designed by forward Euler (its fast pole lies "
                     "beyond -2/dt): use discretisation 'zoh' or 'continuous-cost'"
                 )
+
+    @property
+    def compensator_compliance_rad_per_nm(self) -> np.ndarray:
+        """C of (8) per joint: gc_compliance_rad_per_nm, or the paper's K^-1."""
+        if self.gc_compliance_rad_per_nm is None:
+            return 1.0 / self.joints.stiffness_nm_per_rad
+        return np.asarray(self.gc_compliance_rad_per_nm)
 
     @property
     def n_joints(self) -> int:
