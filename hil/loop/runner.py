@@ -141,6 +141,7 @@ class Loop(ExperimentFeed, RunRecording, RunEnd):
                 self.period,
                 config.model.gain_reschedule_period_s,
                 wall_clock=not clock.deterministic,
+                stop=stop,
             )
         self._support: object = None
         self._kdist: np.ndarray | None = None
