@@ -29,7 +29,6 @@ from hil.wiring.emulation import emulator_spec
 from tests.support.rig import assert_log_complete, emulated_testbed, load_run, run_on
 
 pytestmark = [
-    pytest.mark.faults,
     pytest.mark.timeout(240),
     pytest.mark.skipif(not Path("/proc/self/schedstat").exists(), reason="needs Linux's /proc"),
 ]
@@ -102,6 +101,7 @@ def _run_on_slow_emulator(out_dir: Path, how: str):
             emulator.wait()
 
 
+@pytest.mark.faults
 def test_a_lockstep_run_on_a_slow_emulator_is_the_run_alone(tmp_path: Path) -> None:
     with emulated_testbed(CONFIG, CONTACT) as alone:
         _, reference = run_on(
@@ -116,6 +116,7 @@ def test_a_lockstep_run_on_a_slow_emulator_is_the_run_alone(tmp_path: Path) -> N
     assert result.wall_time_s > 6 * SLOW_S
 
 
+@pytest.mark.faults
 def test_an_emulator_that_does_not_work_on_an_answer_is_not_waited_for(tmp_path: Path) -> None:
     """The same slowness as a sleep: the emulator is idle (as a stopped, dead or silent one
     is), so the wait ends at its allowance plus the idle window, as before."""
