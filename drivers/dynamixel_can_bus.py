@@ -49,6 +49,7 @@ from drivers.joint_bus import (
     JointSample,
     add_wrench,
 )
+from drivers.peer_wait import PeerActivity, PeerWait
 
 
 @dataclass(frozen=True)
@@ -149,13 +150,25 @@ class DynamixelCanBusConfig:
 
 
 class DynamixelCanBus(JointBus):
-    """Dynamixel chains + CAN link encoders as one JointBus (SI units)."""
+    """Dynamixel chains + CAN link encoders as one JointBus (SI units).
 
-    def __init__(self, config: DynamixelCanBusConfig, clock: Callable[[], float] = time.monotonic):
+    peer: what the process behind the buses is doing, when they are served by one on this
+    machine (an emulator in lock-step): every wait for an answer - at open, on every tick, at
+    torque off - then goes on past its timeout while that process works, and ends as on
+    hardware when it is stopped, gone or idle (drivers/peer_wait.py). None (hardware, or an
+    emulator on the wall clock): the timeouts as configured."""
+
+    def __init__(
+        self,
+        config: DynamixelCanBusConfig,
+        clock: Callable[[], float] = time.monotonic,
+        peer: PeerActivity | None = None,
+    ):
         self.config = config
         self.joint_names = config.joint_names
         self.clock = clock
-        self.chains = tuple(DynamixelChain(chain) for chain in config.chains)
+        self.peer = peer
+        self.chains = tuple(DynamixelChain(chain, self._patience()) for chain in config.chains)
         self.readers: list[LinkEncoderReader] = []
         self._chain_joints = [config.layout.joints_of_chain(c) for c in range(len(self.chains))]
         self._channel_joints = [
@@ -190,12 +203,17 @@ class DynamixelCanBus(JointBus):
                     force_torque_sensors=channel.force_torque_sensors,
                     clock=self.clock,
                     bus_description=channel.description,
+                    patience=self._patience(),
                 )
                 self.readers.append(reader)  # owns can_bus from here on
                 reader.open()
         except BaseException:
             self.close()
             raise
+
+    def _patience(self) -> PeerWait | None:
+        """One wait's patience (each chain and channel has its own)."""
+        return PeerWait(self.peer) if self.peer is not None else None
 
     def close(self) -> None:
         if self._closed:

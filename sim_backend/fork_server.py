@@ -15,10 +15,13 @@ held) and open files (a log writer's pipe, another run's ports); the server hold
 
 A forked emulator is what `python -P -m sim_backend --spec-file F` is: `serve_spec_file(F)` in
 its own session (a terminal's Ctrl-C is for the host, which stops its emulators), stdout and
-stderr where the host said, the same exit status. It is also sent SIGTERM when the server ends,
-and the server ends when its host does (it reads the end of its control socket; it ignores
-SIGINT and SIGTERM, which are for the host): no emulator outlives the process that started it,
-even one killed without a chance to stop it.
+stderr where the host said, the same exit status. It is killed when the server ends (SIGKILL:
+a stopped emulator would keep a SIGTERM pending for ever), and the server ends when its host
+does: when the host's end of the control socket closes, or within PARENT_CHECK_S of the host's
+end even while a fork of the host still holds a copy of that end (a helper process that a
+SIGSTOP or a hung disk keeps from ending); it ignores SIGINT and SIGTERM, which are for the
+host. So no emulator outlives the process that started it, even one killed without a chance
+to stop it.
 
 Linux only, like the ptys the emulator serves on: pidfd_open (Linux 5.3) gives the host a
 handle on an emulator that is not its child, prctl(PR_SET_PDEATHSIG) ties the emulator to the
@@ -43,6 +46,7 @@ from sim_backend.server import serve_spec_file
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _MAX_REQUEST_BYTES = 4096  # a spec file's path
 _SERVER_START_TIMEOUT_S = 60.0  # the server's imports, on a loaded machine
+PARENT_CHECK_S = 0.5  # how often an idle server checks that its host is still there
 
 
 class ForkServerError(RuntimeError):
@@ -59,9 +63,13 @@ def serve_forks(control_fd: int) -> int:
     for ending in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(ending, signal.SIG_IGN)  # the host ends the server, by closing `control`
     signal.signal(signal.SIGCHLD, signal.SIG_IGN)  # the kernel reaps the emulators: no zombies
-    server_pid = os.getpid()
+    server_pid, host_pid = os.getpid(), os.getppid()
     control.sendall(b"ready")
     while True:
+        if not select.select([control], [], [], PARENT_CHECK_S)[0]:
+            if os.getppid() != host_pid:  # the host has ended (a fork of it holds `control`)
+                return 0
+            continue
         try:
             request, fds, _flags, _address = socket.recv_fds(control, _MAX_REQUEST_BYTES, 2)
         except OSError:
@@ -120,12 +128,12 @@ def _be_the_emulator(
 
 
 def _end_with_parent(server_pid: int) -> None:
-    """SIGTERM when the server ends (and so its host); at once if it already has."""
+    """SIGKILL when the server ends (and so its host); at once if it already has."""
     libc = ctypes.CDLL(None, use_errno=True)
-    if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0) != 0:
+    if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
         raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
     if os.getppid() != server_pid:  # the server ended before the prctl took effect
-        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 # --- the host's side -----------------------------------------------------------------------

@@ -53,6 +53,7 @@ from drivers.canbus.sensor_nodes import (
     state_name,
 )
 from drivers.canbus.units import force_n_from_counts, link_angle_rad_from_counts, wrench_from_counts
+from drivers.peer_wait import PeerWait
 
 __all__ = ["CanDeviceError", "LinkEncoderReader"]
 
@@ -69,6 +70,12 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
     clock: the time base of `sync_time_s`, ages and heartbeat timing (default
     time.monotonic; a lock-step loop passes its simulated clock so the data are deterministic).
     Deadlines (`collect`'s timeout, open's waits) always use real time.
+    patience: for nodes served by a process on this machine (an emulator in lock-step), the
+    waits of `open()` for a node's boot-up and Operational heartbeat go on past their
+    deadline while that process works (drivers/peer_wait.py); None (hardware): the deadline.
+    canopen's SDO answers keep their `sdo_timeout_s` (0.3 s), and `collect` its timeout: a
+    lock-step emulator has written a SYNC's TPDOs before it answers the sync read, which the
+    bus collects first (`links_after_actuators`), so there is nothing left to wait for.
     """
 
     def __init__(
@@ -83,6 +90,7 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
         sdo_timeout_s: float = 0.3,
         boot_timeout_s: float = 1.0,
         heartbeat_timeout_factor: float = 3.0,
+        patience: PeerWait | None = None,
     ) -> None:
         configs: list[LinkEncoderConfig | ForceSensorConfig | ForceTorqueSensorConfig] = list(
             encoders
@@ -106,6 +114,7 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
         self._clock = clock
         self.bus_description = bus_description or f"{type(bus).__name__} ({bus.channel_info})"
         self._sdo_timeout_s = sdo_timeout_s
+        self._patience = patience
         self._boot_timeout_s = boot_timeout_s
         self._network = canopen.Network(bus)  # no connect(): we own the receive path
         self._object_dictionary = sensor_object_dictionary()

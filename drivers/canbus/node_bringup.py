@@ -277,12 +277,21 @@ class NodeBringUp:
             self._states_since_mark[index] = []
 
     def _wait_for_state(self, index: int, state: int, timeout_s: float) -> bool:
+        """Whether the node said `state` within `timeout_s` (or later, while the process that
+        serves it works: `_patience`)."""
         deadline = time.monotonic() + timeout_s
+        patience = self._patience
+        if patience is not None:
+            patience.begin()
         with self._heartbeat_seen:
             while state not in self._states_since_mark[index]:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0.0:
-                    return False
+                    extension_s = patience.extension_s() if patience is not None else 0.0
+                    if extension_s <= 0.0:
+                        return False
+                    deadline = time.monotonic() + extension_s
+                    continue
                 self._heartbeat_seen.wait(remaining)
         return True
 

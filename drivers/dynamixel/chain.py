@@ -29,6 +29,7 @@ from drivers.dynamixel.sync_transfer import SyncTransfer
 from drivers.dynamixel.torque_control import TorqueControl
 from drivers.dynamixel.units import current_limit_raw_to_a
 from drivers.joint_bus import BusError
+from drivers.peer_wait import PeerWait
 
 __all__ = [
     "DeviceInfo",
@@ -48,8 +49,9 @@ class DynamixelChain(SyncTransfer, TorqueControl):
     IDs in `enable`/`disable`/`reboot` are Dynamixel IDs; arrays are in `config.joints` order.
     """
 
-    def __init__(self, config: DynamixelChainConfig) -> None:
+    def __init__(self, config: DynamixelChainConfig, patience: PeerWait | None = None) -> None:
         self.config = config
+        self.patience = patience  # a device that is a process here: drivers/peer_wait.py
         self.spec = config.spec
         self.units = self.spec.units
         self.layout = StateBlockLayout(self.spec, config.indirect_first_index)
@@ -140,6 +142,7 @@ class DynamixelChain(SyncTransfer, TorqueControl):
             self.config.baudrate,
             latency_timer_ms=self.config.latency_timer_ms,
             timeout_margin_ms=self.config.timeout_margin_ms,
+            patience=self.patience,
         )
         self._io = DeviceIO(
             self._port,

@@ -32,6 +32,7 @@ from dynamixel_sdk import PortHandler
 
 from drivers.dynamixel.errors import PortGoneError
 from drivers.joint_bus import BusError
+from drivers.peer_wait import PeerWait
 
 _T = TypeVar("_T")
 
@@ -55,6 +56,10 @@ class LowLatencyPortHandler(PortHandler):
     While a reply is awaited, reads sleep in select() instead of spinning (see
     `_read_when_ready`).
 
+    patience: for a device that is a process on this machine (an emulator in lock-step), the
+    wait for a reply goes on past its timeout while that process works (drivers/peer_wait.py):
+    a loaded machine delays the answer, it does not lose it. None (hardware): the timeout.
+
     A port that fails (adapter unplugged, emulator gone) raises `PortGoneError` from then on,
     on every call, without touching the device again; the SDK's `is_using` flag is released, so
     a later call cannot be mistaken for a busy port ("Port is in use!").
@@ -63,7 +68,12 @@ class LowLatencyPortHandler(PortHandler):
     """
 
     def __init__(
-        self, port_name: str, *, latency_timer_ms: float = 1.0, timeout_margin_ms: float = 2.0
+        self,
+        port_name: str,
+        *,
+        latency_timer_ms: float = 1.0,
+        timeout_margin_ms: float = 2.0,
+        patience: PeerWait | None = None,
     ) -> None:
         if not latency_timer_ms > 0.0:
             raise ValueError(f"latency_timer_ms must be > 0 ms, got {latency_timer_ms!r}")
@@ -73,6 +83,7 @@ class LowLatencyPortHandler(PortHandler):
         self.latency_timer_ms = float(latency_timer_ms)
         self.timeout_margin_ms = float(timeout_margin_ms)
         self.failure: str | None = None  # the OS error that made the port fail, once it has
+        self.patience = patience
         # Bytes read ahead from the OS (see `_read_ahead`) and how far the SDK has taken them.
         self._ahead = b""
         self._position = 0
@@ -158,6 +169,26 @@ class LowLatencyPortHandler(PortHandler):
             + 2.0 * self.latency_timer_ms
             + self.timeout_margin_ms
         )
+        if self.patience is not None:
+            self.patience.begin()
+
+    def setPacketTimeoutMillis(self, msec: float) -> None:  # overrides the SDK method
+        super().setPacketTimeoutMillis(msec)
+        if self.patience is not None:
+            self.patience.begin()
+
+    def isPacketTimeout(self) -> bool:  # overrides the SDK method
+        """The SDK's test, but a reply that `patience` says is still being worked on is
+        waited for on (the window restarts for the extension it gives)."""
+        if self.getTimeSinceStart() <= self.packet_timeout:
+            return False
+        extension_s = self.patience.extension_s() if self.patience is not None else 0.0
+        if extension_s > 0.0:
+            self.packet_start_time = self.getCurrentTime()
+            self.packet_timeout = extension_s * 1e3
+            return False
+        self.packet_timeout = 0  # as the SDK: the other replies of a sync read are late too
+        return True
 
     def getCurrentTime(self) -> float:  # overrides the SDK method
         """Milliseconds on a monotonic clock (the SDK uses wall time)."""
@@ -204,12 +235,13 @@ def open_port(
     latency_timer_ms: float = 1.0,
     timeout_margin_ms: float = 2.0,
     sysfs_root: Path = USB_SERIAL_SYSFS,
+    patience: PeerWait | None = None,
 ) -> LowLatencyPortHandler:
     """Open `port` at `baudrate` through the SDK, or raise `BusError` saying what to fix.
 
     Refuses a rate outside the SDK's whitelist (it rejects 4.5 and 10.5 Mbps although the H54
     supports them) and an adapter whose USB latency timer is longer than `latency_timer_ms`
-    (every reply would then arrive after the timeout).
+    (every reply would then arrive after the timeout). `patience`: see LowLatencyPortHandler.
     """
     if not sdk_accepts_baudrate(baudrate):
         raise BusError(
@@ -220,7 +252,10 @@ def open_port(
             "devices' Baud Rate item to a rate both support, e.g. 4000000 (index 6)."
         )
     handler = LowLatencyPortHandler(
-        port, latency_timer_ms=latency_timer_ms, timeout_margin_ms=timeout_margin_ms
+        port,
+        latency_timer_ms=latency_timer_ms,
+        timeout_margin_ms=timeout_margin_ms,
+        patience=patience,
     )
     try:
         # setBaudRate opens (or re-opens) the port; openPort() would first open at 1 Mbps.

@@ -195,7 +195,8 @@ def _check(
         outcome["ok"] = reaction is not None and 1 <= reaction <= bound
     exit_note = summary["exit"][0] if summary["exit"] else "?"
     wanted_off = config.safety.on_exit == "torque_off"
-    honest = (exit_note == "torque off") == (not torque_on) if wanted_off else True
+    said_off = exit_note.startswith("torque off") and "FAILED" not in exit_note  # (N tries)
+    honest = said_off == (not torque_on) if wanted_off else True
     outcome["exit"] = exit_note if honest else f"DISHONEST: {exit_note}, torque on={torque_on}"
     outcome["ok"] = outcome["ok"] and honest and outcome["rows_lost"] == 0
     return outcome

@@ -145,7 +145,8 @@ def _add_run_output(run: argparse.ArgumentParser) -> None:
         type=int,
         metavar="N",
         help="the comparison's runs N at a time, each in its own process with its own emulator "
-        "(default: one per CPU; 1: one after the other, in this process)",
+        "(default and at most: one per CPU this process may use, os.sched_getaffinity; "
+        "1: one after the other, in this process)",
     )
 
 

@@ -31,17 +31,30 @@ process when the scheduler is built (it has the robot model and the designer as 
 and keeps the designer's warm start between designs); requests and gains travel through a pipe
 (`_DesignProcess`). Where fork is not available, the designs run in a thread as before.
 Each design's latency (request to use) and compute time are recorded for the summary.
+
+Waiting for a design (lock-step) is bounded by the designer's progress, not by a time: it is
+waited for while it runs or waits for a CPU (a loaded machine), however long; one that has
+made no progress for DESIGNER_STALL_S (stopped, or asleep while a design is due:
+hil/wiring/process_activity.py) has stalled, and one whose process ended is gone. Either is
+`GainDesignerLost`, which stops the run as a lost bus does (torque off on its exit path), its
+message saying what stalled, since when and at which tick. A stop (Ctrl-C, SIGTERM: the loop's
+StopFlag) ends the wait at once: the gain in force stays, and the loop ends at its next tick.
+The designer dies with the loop's process (PR_SET_PDEATHSIG: SIGKILL, which acts on a stopped
+process too) and holds none of its descriptors (a port, a pipe, the fork server's socket that
+keeps the emulators alive until its last holder is gone).
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
 import os
 import pickle
 import signal
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
@@ -51,10 +64,25 @@ from threadpoolctl import threadpool_limits
 
 from controller import JointController
 from controller.lqr import TrackingGain
+from drivers.peer_wait import PeerWait
 from hil.controllers.robot_model import RobotModel
+from hil.loop.request import StopFlag
 from hil.output.log_process import never_preempt_the_loop
+from hil.wiring.process_activity import ProcessActivity, proc_available
 
 LOCKSTEP_LEAD_TICKS = 4  # a design requested at tick k is in force from tick k + 4 (20 ms)
+# A designer that neither ran nor waited for a CPU for this long while a design was due has
+# stalled (a design takes 1-30 ms of CPU here; a runnable one is waited for however long).
+DESIGNER_STALL_S = 1.0
+_LOOK_S = 0.02  # how often a wait for a design looks at the designer and the stop flag
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+_PR_SET_NAME = 15
+DESIGNER_PROCESS_NAME = b"hil-designer"  # its name in ps -o comm, top
+
+
+class GainDesignerLost(OSError):
+    """The gain designer's process ended or stalled while the loop waited for a design: the
+    run stops as on a lost bus (an OSError, like hil.output.log_process.LogWriterLost)."""
 
 
 @dataclass
@@ -104,13 +132,27 @@ class _DesignProcess:
     def __init__(self, robot: RobotModel, designer: Any) -> None:
         context = multiprocessing.get_context("fork")
         self._connection, child = context.Pipe()
+        inherited = _open_descriptors() - {child.fileno()}  # the child closes these
         self._process = context.Process(
-            target=_serve, args=(child, robot, designer), name="gain-designer", daemon=True
+            target=_serve,
+            args=(child, robot, designer, os.getpid(), inherited),
+            name="gain-designer",
+            daemon=True,
         )
         self._process.start()
         child.close()
         self._ended = False
         self._paused = False
+        self._lost: str | None = None  # why the designer was given up (stalled or ended)
+        self._watch = (
+            PeerWait(
+                ProcessActivity(self._process.pid),
+                idle_window_s=DESIGNER_STALL_S,
+                look_interval_s=_LOOK_S,
+            )
+            if self._process.pid is not None and proc_available()
+            else None
+        )
 
     def submit(self, link_angle_rad: np.ndarray, contact: object) -> None:
         try:
@@ -121,16 +163,27 @@ class _DesignProcess:
     def done(self) -> bool:
         return self._ended or self._connection.poll()
 
-    def result(self) -> Design:
-        """The design submitted last (waits for it)."""
-        if not self._ended:
+    def result(self, stopped: Callable[[], bool] = lambda: False) -> Design | None:
+        """The design submitted last: waited for while the designer makes progress; None if
+        `stopped()` first. Raises GainDesignerLost if it has stalled or ended."""
+        watch = self._watch
+        if watch is not None:
+            watch.begin()
+        while not self._ended:
             try:
-                return self._connection.recv()
+                if self._connection.poll(_LOOK_S):
+                    return self._connection.recv()
             except (EOFError, OSError):
                 self._ended = True
+                break
+            if stopped():
+                return None
+            if watch is not None and watch.extension_s() == 0.0 and self._process.is_alive():
+                self._lost = _stall(self._process.pid, watch)
+                raise GainDesignerLost(self._lost)
         self._process.join(timeout=1.0)
-        code = self._process.exitcode
-        return RuntimeError(f"the gain designer's process ended (exit code {code})"), 0.0
+        self._lost = f"the gain designer's process ended (exit code {self._process.exitcode})"
+        raise GainDesignerLost(self._lost)
 
     def pause(self, paused: bool) -> None:
         """Stop (SIGSTOP) or continue (SIGCONT) the designer where it is."""
@@ -140,19 +193,77 @@ class _DesignProcess:
             self._paused = paused
 
     def close(self) -> None:
-        self.pause(False)  # a stopped process reads no None
-        with contextlib.suppress(OSError):  # (it may have ended already)
-            self._connection.send(None)
-        self._process.join(timeout=5.0)
-        if self._process.is_alive():
-            self._process.terminate()
-            self._process.join(timeout=1.0)
+        """Tell it to leave and wait a little; one that stalled, or does not leave, is killed
+        (a stopped process keeps a SIGTERM pending, and multiprocessing would wait for it at
+        this process's exit)."""
+        process = self._process
+        if self._lost is None and process.pid is not None:
+            with contextlib.suppress(ProcessLookupError):  # stopped by whoever: it reads None
+                os.kill(process.pid, signal.SIGCONT)
+            self._paused = False
+            with contextlib.suppress(OSError):  # (it may have ended already)
+                self._connection.send(None)
+            process.join(timeout=5.0)
+        if process.is_alive():
+            process.kill()
+            process.join(timeout=5.0)
         self._connection.close()
 
 
-def _serve(connection: Connection, robot: RobotModel, designer: Any) -> None:
+def _stall(pid: int | None, watch: PeerWait) -> str:
+    look = watch.last_look
+    if look is not None and look.runnable:
+        return (
+            f"the gain designer (process {pid}) is still running after {watch.extended_s:.0f} s "
+            "without a design (a design takes milliseconds)"
+        )
+    state = look.state if look is not None else "gone"
+    return (
+        f"the gain designer (process {pid}) has stalled: {state}, no progress for "
+        f"{watch.idle_window_s:g} s"
+    )
+
+
+def _open_descriptors() -> set[int]:
+    """This process's open file descriptors but the standard three (none known: empty)."""
+    try:
+        listed = {int(name) for name in os.listdir("/proc/self/fd")} - {0, 1, 2}
+    except OSError:
+        return set()
+    return {fd for fd in listed if _is_open(fd)}  # not the one the listing itself used
+
+
+def _is_open(fd: int) -> bool:
+    try:
+        os.fstat(fd)
+    except OSError:
+        return False
+    return True
+
+
+def _become_the_designer(host_pid: int, inherited: set[int]) -> None:
+    """Tied to the loop's process and holding nothing of it (see the module docstring)."""
+    with contextlib.suppress(OSError, AttributeError):  # (Linux only)
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        libc.prctl(_PR_SET_NAME, ctypes.c_char_p(DESIGNER_PROCESS_NAME), 0, 0, 0)
+    if os.getppid() != host_pid:  # the loop's process ended before the prctl took effect
+        os._exit(1)
+    for fd in inherited:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+
+
+def _serve(
+    connection: Connection,
+    robot: RobotModel,
+    designer: Any,
+    host_pid: int,
+    inherited: set[int],
+) -> None:
     """The designer process: one design per request, until None or the loop's end of the pipe
     closes. Ctrl-C is the loop's to handle (it closes the scheduler)."""
+    _become_the_designer(host_pid, inherited)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     never_preempt_the_loop()
     with threadpool_limits(limits=1, user_api="blas"):
@@ -203,10 +314,12 @@ class _DesignThread:
         with self._wake:
             return self._done is not None
 
-    def result(self) -> Design:
+    def result(self, stopped: Callable[[], bool] = lambda: False) -> Design | None:
         with self._wake:
             while self._done is None and not self._closed:
-                self._wake.wait()
+                if stopped():
+                    return None
+                self._wake.wait(_LOOK_S)
             done, self._done = self._done, None
         return done if done is not None else (RuntimeError("the gain scheduler closed"), 0.0)
 
@@ -233,7 +346,8 @@ class _DesignThread:
 class GainScheduler:
     """See the module docstring. `controller` must be an LQR controller (`set_lqr_gain`).
 
-    wall_clock: install a design when it is done (else on its due tick, waiting for it)."""
+    wall_clock: install a design when it is done (else on its due tick, waiting for it).
+    stop: the loop's StopFlag; a wait for a design ends when it is set."""
 
     def __init__(
         self,
@@ -244,6 +358,7 @@ class GainScheduler:
         *,
         wall_clock: bool,
         lead_ticks: int = LOCKSTEP_LEAD_TICKS,
+        stop: StopFlag | None = None,
     ) -> None:
         self.robot = robot
         self.controller = controller
@@ -251,6 +366,7 @@ class GainScheduler:
         self.period_ticks = max(1, round(reschedule_s / period_s))
         self.wall_clock = wall_clock
         self.lead_ticks = max(1, int(lead_ticks))
+        self._stop = stop
         self.schedule = GainSchedule()
         designer = controller.params.gain_designer(period_s)  # type: ignore[attr-defined]
         self._requested_contact: object = None
@@ -304,6 +420,9 @@ class GainScheduler:
         self._worker.close()
         self._blas.restore_original_limits()
 
+    def _stopped(self) -> bool:
+        return self._stop is not None and self._stop.reason is not None
+
     def _install(self, tick: int) -> None:
         pending = self._pending
         if pending is None:
@@ -311,13 +430,23 @@ class GainScheduler:
         if self.wall_clock:
             if not self._worker.done():
                 return
-            gain, compute_s = self._worker.result()
+            done = self._worker.result()
         else:
             if tick < pending.due_tick:
                 return
             started = time.perf_counter()
-            gain, compute_s = self._worker.result()
+            try:
+                done = self._worker.result(self._stopped)
+            except GainDesignerLost as exc:
+                raise GainDesignerLost(
+                    f"{exc}, waiting for the design due at tick {tick} (t = "
+                    f"{tick * self.period_s:.3f} s, requested at tick "
+                    f"{pending.due_tick - self.lead_ticks}): the run stops"
+                ) from None
             self.schedule.waited_s.append(time.perf_counter() - started)
+        if done is None:  # stopped while waiting: the loop ends at its next tick
+            return
+        gain, compute_s = done
         self._pending = None
         if isinstance(gain, Exception):  # the design failed: say so on the loop's thread
             raise gain

@@ -169,6 +169,7 @@ class Loop:
             self.period,
             self.config.model.gain_reschedule_period_s,
             wall_clock=not self.clock.deterministic,
+            stop=self.stop,
         )
 
     # --- the run -------------------------------------------------------------------------------

@@ -22,6 +22,9 @@ if TYPE_CHECKING:
     from hil.safety import Supervisor
 
 DISABLE_RETRY_TICKS = 20  # a torque off the bus did not take is tried again this often
+# The exit path's torque off: tries before it is reported as failed (each costs the driver's
+# timeouts: ~4 ms on hardware with a silent device, the lock-step allowance on an emulator).
+EXIT_TORQUE_OFF_TRIES = 3
 
 EventLog = Callable[..., None]  # RunLog.event
 
@@ -59,29 +62,56 @@ class TorqueKeeper:
         self.answered_before = answered
 
     def disable(self, time_s: float, why: str, quiet: bool = False) -> bool:
-        """Torque off on every joint; False (and logged, unless `quiet`) if the bus did not take it.
+        """Torque off on every joint, one try; False (and logged, unless `quiet`) if the bus
+        did not take it."""
+        return self._torque_off(time_s, why, quiet, tries=1) is not None
+
+    def _torque_off(self, time_s: float, why: str, quiet: bool, tries: int) -> int | None:
+        """Torque off, up to `tries` times until the bus takes it: the tries it took (in the
+        event too), or None if it did not (logged, unless `quiet`).
 
         Any exception counts as a failure: on an exit path a lost port may raise what it likes,
         and the log must still be completed.
         """
-        try:
-            self.bus.disable()
-        except Exception as exc:  # noqa: BLE001 - best effort, reported
-            if not quiet:
-                self.event(time_s, "torque_off_failed", f"{why}: could not turn torque off: {exc}")
-            return False
-        self.event(time_s, "torque_off", f"{why}: torque off")
-        return True
+        error: Exception | None = None
+        for attempt in range(1, tries + 1):
+            try:
+                self.bus.disable()
+            except Exception as exc:  # noqa: BLE001 - best effort, reported
+                error = exc
+                continue
+            took = f" ({_tries(attempt)})" if attempt > 1 else ""
+            self.event(time_s, "torque_off", f"{why}: torque off{took}", tries=attempt)
+            return attempt
+        if not quiet:
+            took = f" ({_tries(tries)})" if tries > 1 else ""
+            self.event(
+                time_s,
+                "torque_off_failed",
+                f"{why}: could not turn torque off{took}: {error}",
+                tries=tries,
+            )
+        return None
 
     def exit_state(self, on_exit: Reaction, time_s: float, opened: bool) -> list[str]:
-        """The configured exit torque state and the bus closed; notes for summary.json."""
+        """The configured exit torque state and the bus closed; notes for summary.json.
+
+        Torque off is tried up to EXIT_TORQUE_OFF_TRIES times, as on hardware a command whose
+        status packet was lost (noise, a busy adapter) is sent again: the devices take a
+        repeated Torque Enable = 0 as the first. The note says how many tries it took when
+        it took more than one."""
         if not opened:
             return ["bus never opened: nothing was sent"]
         notes: list[str] = []
         if on_exit is Reaction.TORQUE_OFF:
-            ok = self.disable(time_s, "exit")
-            notes.append("torque off" if ok else "torque off FAILED (see events.jsonl)")
-            self.exit_failed = not ok
+            tries = self._torque_off(time_s, "exit", False, EXIT_TORQUE_OFF_TRIES)
+            if tries is None:
+                notes.append(
+                    f"torque off FAILED ({_tries(EXIT_TORQUE_OFF_TRIES)}; see events.jsonl)"
+                )
+            else:
+                notes.append("torque off" + (f" ({_tries(tries)})" if tries > 1 else ""))
+            self.exit_failed = tries is None
         else:
             notes.append(f"torque left {'on' if self.on else 'off'} (on_exit = hold)")
             self.event(time_s, "exit_hold", "exit: torque left as it was (on_exit = hold)")
@@ -91,3 +121,7 @@ class TorqueKeeper:
             notes.append(f"close failed: {exc}")
             self.event(time_s, "close_failed", str(exc))
         return notes
+
+
+def _tries(count: int) -> str:
+    return f"{count} {'try' if count == 1 else 'tries'}"

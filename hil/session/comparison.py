@@ -195,10 +195,12 @@ class PlanOutcome:
 
 
 def comparison_workers(session: Session, requested: int | None, runs: int) -> int:
-    """How many runs at a time: `requested`, else one per CPU this process may use (at most
-    one per run). One where runs cannot share the machine's setup: an attached emulator
-    serves one run at a time, the live view is this process's, and wall-clock runs on the
-    same cores would take each other's time (ask for more with --workers to have it anyway)."""
+    """How many runs at a time: `requested`, else one per CPU this process may use; never
+    more than one per run nor than those CPUs (each run is three busy processes: the loop,
+    its emulator, its helpers; more at once only share the CPUs and slow every run). One
+    where runs cannot share the machine's setup: an attached emulator serves one run at a
+    time, the live view is this process's, and wall-clock runs on the same cores would take
+    each other's time (ask for more with --workers to have it anyway)."""
     if requested is not None:
         if requested < 1:
             raise ConfigError(f"--workers: must be >= 1, got {requested}")
@@ -207,7 +209,10 @@ def comparison_workers(session: Session, requested: int | None, runs: int) -> in
                 "--workers: an attached emulator (--attach) and the live view (--live) serve "
                 "one run at a time: give --workers 1"
             )
-        return min(requested, max(runs, 1))
+        count = min(requested, max(runs, 1), usable_cpus())
+        if count < min(requested, max(runs, 1)):
+            session.say(f"--workers {requested}: {count} at a time (the CPUs this may use)")
+        return count
     if session.setup is Setup.ATTACHED or session.sinks or session.realtime:
         return 1
     return max(1, min(usable_cpus(), runs))

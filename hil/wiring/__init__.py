@@ -4,6 +4,7 @@ connection.py   where the buses are (ports of the configuration, of an emulator,
 hardware.py     the drivers' configuration from the file; device checks; `make_bus`
 emulation.py    the emulator's spec from the file and an experiment; the emulator process
 in_process.py   a JointBus on the emulated plant in this process (fast loop tests)
+process_activity.py  what a process of the run is doing (/proc): what lock-step waits go on by
 """
 
 from hil.wiring.checks import check_devices

@@ -22,12 +22,15 @@ class SerialEndpoint:
 
 @dataclass(frozen=True)
 class Connection:
-    """Ports by chain name and CAN keyword arguments by channel name."""
+    """Ports by chain name and CAN keyword arguments by channel name; for an emulator, whether
+    it is in lock-step and its process (`emulator_pid`: the "pid" of its endpoints, which an
+    embedded emulator's have), which a lock-step bus waits for while it works."""
 
     dynamixel: dict[str, SerialEndpoint]
     can: dict[str, dict[str, Any]]
     lockstep: bool = False
     emulated: bool = False
+    emulator_pid: int | None = None
 
     @classmethod
     def from_config(cls, config: Config, *, require_ports: bool = True) -> Connection:
@@ -56,6 +59,8 @@ class Connection:
             port = str(endpoints["dynamixel_port"])
             baudrate = int(endpoints["baudrate"])
             can_kwargs = dict(endpoints["can"])
+            pid = endpoints.get("pid")
+            pid = None if pid is None else int(pid)
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"the emulator's endpoints lack or garble {exc}") from None
         return cls(
@@ -63,6 +68,7 @@ class Connection:
             {config.can[0].name: can_kwargs},
             lockstep=endpoints.get("clock") == "lockstep",
             emulated=True,
+            emulator_pid=pid,
         )
 
     def with_overrides(

@@ -237,7 +237,7 @@ class EmulatorStartError(RuntimeError):
 class EmbeddedEmulator:
     """`hil emulate` in a process of its own, forked from this process's fork server
     (sim_backend/fork_server.py: imported once, each emulator in milliseconds); `endpoints` is
-    its first stdout line, `fault_counts` its last once stopped."""
+    its first stdout line with its process's "pid", `fault_counts` its last once stopped."""
 
     def __init__(self, spec: EmulatorSpec) -> None:
         self.spec = spec
@@ -274,12 +274,15 @@ class EmbeddedEmulator:
             os.close(stdout_write)  # the emulator's copy is the one left: EOF when it ends
         line = self._read_first_line()
         try:
-            self.endpoints = json.loads(line)
+            endpoints = json.loads(line)
         except json.JSONDecodeError:
             self.stop()
             raise EmulatorStartError(
                 f"the emulator printed {line!r} instead of its endpoints"
             ) from None
+        # its process, which a lock-step bus waits for while it works (hil/wiring/hardware.py)
+        assert self.process is not None
+        self.endpoints = {**endpoints, "pid": self.process.pid}
         return self.endpoints
 
     def _read_first_line(self) -> str:

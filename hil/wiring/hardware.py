@@ -7,7 +7,12 @@ without opening a port, so a bad value is refused before anything is sent, in ev
 
 In lock-step emulation the timeouts are widened: the emulator answers every request, but a
 loaded machine may delay it by tens of milliseconds, and a timeout that fired on such a delay
-would make the run depend on the machine's load.
+would make the run depend on the machine's load. Where the emulator's process is known (an
+embedded emulator), every wait of the bus - at open, on tick 0 and every tick, at torque off -
+also goes on past its timeout while that process works (runnable or using the CPU:
+hil/wiring/process_activity.py, drivers/peer_wait.py), and ends when it is stopped, gone or
+idle: a lock-step run is the same on a loaded machine as alone. On hardware and on the wall
+clock the timeouts are as configured.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from drivers.dynamixel import DynamixelChainConfig, DynamixelJointConfig, model_
 from drivers.dynamixel_can_bus import CanChannelConfig, DynamixelCanBus, DynamixelCanBusConfig
 from hil.config import Config, ConfigError, JointSection
 from hil.wiring.connection import Connection
+from hil.wiring.process_activity import ProcessActivity
 
 LOCKSTEP_LATENCY_TIMER_MS = 50.0
 # Lock-step: the emulator sends a SYNC's TPDOs before it answers the sync read, and the bus
@@ -151,7 +157,10 @@ def make_bus(
         bus_cfg = bus_config(config, connection, read_only=read_only)
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
-    return DynamixelCanBus(bus_cfg, clock=clock or time.monotonic)
+    peer = None
+    if connection.lockstep and connection.emulator_pid is not None:
+        peer = ProcessActivity(connection.emulator_pid)
+    return DynamixelCanBus(bus_cfg, clock=clock or time.monotonic, peer=peer)
 
 
 def configured_current_limits_a(config: Config) -> list[float]:

@@ -21,7 +21,7 @@ from controller.humanoid import (
 from hil.config import load_config
 from hil.experiments import WALK_SLOW
 from hil.loop import build_controller, robot_model
-from hil.loop.gain_scheduler import GainScheduler
+from hil.loop.gain_scheduler import GainDesignerLost, GainScheduler
 from hil.vocabulary import ControllerChoice
 from tests.support.rig import run_in_process
 
@@ -196,7 +196,7 @@ def test_a_designer_process_that_died_is_an_error_not_a_hang() -> None:
     try:
         process.kill()
         process.join()
-        with pytest.raises(RuntimeError, match="process ended"):
+        with pytest.raises(GainDesignerLost, match="process ended"):
             for tick in range(scheduler.lead_ticks + 1):
                 scheduler.update(tick, READY, LqrContact.BOTH_FEET, LqrContact.BOTH_FEET)
     finally:

@@ -84,7 +84,7 @@ def test_how_many_workers(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> No
     session = Session(CONFIG, Setup.EMBEDDED, out_root=tmp_path)
     assert comparison_workers(session, None, 16) == 2  # one per CPU
     assert comparison_workers(session, None, 1) == 1  # at most one per run
-    assert comparison_workers(session, 3, 16) == 3  # asked for
+    assert comparison_workers(session, 1, 16) == 1  # asked for
     assert comparison_workers(dataclasses.replace(session, realtime=True), None, 16) == 1
     attached = dataclasses.replace(session, setup=Setup.ATTACHED, attach={})
     assert comparison_workers(attached, None, 16) == 1
@@ -92,6 +92,17 @@ def test_how_many_workers(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> No
         comparison_workers(attached, 2, 16)
     with pytest.raises(ConfigError, match=">= 1"):
         comparison_workers(session, 0, 16)
+
+
+def test_workers_asked_for_are_at_most_one_per_usable_cpu(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`hil run --robot dyros-jet --workers 1000` ran 10 at once on 2 CPUs (issue 25)."""
+    monkeypatch.setattr("hil.session.comparison.usable_cpus", lambda: 2)
+    session = Session(CONFIG, Setup.EMBEDDED, out_root=tmp_path, quiet=True)
+    assert comparison_workers(session, 1000, 10) == 2
+    assert comparison_workers(session, 3, 16) == 2
+    assert comparison_workers(session, 2, 16) == 2
 
 
 def test_a_humanoid_lqr_run_designs_its_gains_in_a_worker(tmp_path: Path) -> None:
