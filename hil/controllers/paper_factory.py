@@ -68,7 +68,7 @@ def build_controller(
     start_rad: np.ndarray | None = None,
     contact: object = None,
 ) -> JointController:
-    """The chosen controller for the configured robot (hil/loop/robot_model.py), its LQR
+    """The chosen controller for the configured robot (hil/controllers/robot_model.py), its LQR
     designed on the Sm of the start posture `start_rad` (the experiment's first reference) and
     the LQR's contact there (`RobotModel.lqr_contacts`)."""
     section = config.controller

@@ -1,4 +1,4 @@
-"""`[controller] dob_expects_gravity_lag` reaches the controller (hil/loop/controller_factory.py):
+"""`[controller] dob_expects_gravity_lag` reaches the controller (hil/controllers/paper_factory.py):
 on for the built-in DYROS-JET (its servo model is the cascade), off for the testbed's built-in
 configuration (the paper's DOB), and on the humanoid the DOB it builds compares the motor with
 the goal minus (1/(Kpp kv)) / C ug (controller/controllers.py; by hand in
