@@ -33,15 +33,19 @@ from controller.gravity import (
 )
 from controller.joint_controller import ControllerUsageError, ControlTerms, JointController
 from controller.lqr import (
+    COUPLINGS,
     LQR_DESIGNS,
+    Coupling,
     LqrDesign,
     LqrWeights,
     TrackingGain,
     design_continuous_tracking_lqr,
 )
 from controller.lqr_designs import (
+    KDIST_REFERENCES,
     SERVO_MODELS,
     GainDesigner,
+    KdistReference,
     ServoModel,
     design_discrete_tracking_lqr,
 )
@@ -52,11 +56,15 @@ from controller.model import (
     single_link_sm,
 )
 from controller.params import CONTROLLER_NAMES, LAB_KDIST_RAMP_S, ControllerKind, ControllerParams
-from controller.planned_motion import PlannedMotion
+from controller.planned_motion import GcLoad, PlannedMotion
 from controller.servo_cascade import ServoCascadeParams
 
 __all__ = [
     "COMPOSITION_READINGS",
+    "COUPLINGS",
+    "Coupling",
+    "KDIST_REFERENCES",
+    "KdistReference",
     "CONTROLLER_NAMES",
     "LAB_DOB_CUTOFF_HZ",
     "LAB_KDIST_RAMP_S",
@@ -77,6 +85,7 @@ __all__ = [
     "GC_COMPLIANCES",
     "GcCompliance",
     "GainDesigner",
+    "GcLoad",
     "GravityCompensator",
     "GravityModel",
     "JointController",

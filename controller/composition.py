@@ -77,12 +77,20 @@ than nominal, a first-order fit gives 7.2 1/s, so it runs stable.)
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+import enum
 
 import numpy as np
 
-CompositionReading = Literal["accumulated", "literal", "accumulated-integral"]
-COMPOSITION_READINGS: tuple[str, ...] = get_args(CompositionReading)
+
+class CompositionReading(enum.StrEnum):
+    """The reading of the paper's (25) (see the module docstring)."""
+
+    ACCUMULATED = "accumulated"
+    LITERAL = "literal"
+    ACCUMULATED_INTEGRAL = "accumulated-integral"
+
+
+COMPOSITION_READINGS: tuple[str, ...] = tuple(member.value for member in CompositionReading)
 
 
 class Composition:
@@ -101,7 +109,7 @@ class Composition:
     ) -> None:
         if reading not in COMPOSITION_READINGS:
             raise ValueError(f"composition must be one of {COMPOSITION_READINGS}, got {reading!r}")
-        integrating = reading == "accumulated-integral"
+        integrating = reading == CompositionReading.ACCUMULATED_INTEGRAL
         if integrating != (dob_integral_gain_per_tick is not None):
             raise ValueError(
                 "the DOB integral gain is needed by the 'accumulated-integral' reading and "
@@ -115,7 +123,7 @@ class Composition:
                 f"{dob_integral_gain_per_tick}"
             )
         self.reading = reading
-        self._accumulate_dob = reading != "literal"
+        self._accumulate_dob = reading != CompositionReading.LITERAL
         self._integral_gain = dob_integral_gain_per_tick or 0.0
         self.uc = np.zeros(n_joints)
         self.d_hat = np.zeros(n_joints)

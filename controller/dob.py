@@ -156,10 +156,10 @@ def nominal_servo_coefficients(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(a, b) of the sampled nominal servo theta_m(k+1) = a theta_m(k) + b u(k), per joint."""
     gain = np.asarray(servo_gain_per_s, dtype=float)
-    if method == "zoh":
+    if method == Discretisation.ZOH:
         a = np.exp(-gain * dt_s)
         return a, 1.0 - a
-    if method == "euler":
+    if method == Discretisation.EULER:
         return 1.0 - gain * dt_s, gain * dt_s
     raise ValueError(f"discretisation must be one of {DISCRETISATIONS}, got {method!r}")
 

@@ -32,13 +32,20 @@ K = 2000 N m/rad).
 
 from __future__ import annotations
 
+import enum
 import math
-from typing import Literal, get_args
 
 import numpy as np
 
-LinkVelocityIncrement = Literal["backward-difference", "zero"]
-LINK_VELOCITY_INCREMENTS: tuple[str, ...] = get_args(LinkVelocityIncrement)
+
+class LinkVelocityIncrement(enum.StrEnum):
+    """The link velocity's increment in the LQR's state (see the module docstring)."""
+
+    BACKWARD_DIFFERENCE = "backward-difference"
+    ZERO = "zero"
+
+
+LINK_VELOCITY_INCREMENTS: tuple[str, ...] = tuple(member.value for member in LinkVelocityIncrement)
 
 
 def _velocity_filter_pole(cutoff_hz: float | None, dt_s: float) -> float:
@@ -93,7 +100,7 @@ class FlexibleJointStateEstimator:
             )
         self.n_joints = n_joints
         self.dt_s = float(dt_s)
-        self._zero_velocity_increment = link_velocity_increment == "zero"
+        self._zero_velocity_increment = link_velocity_increment == LinkVelocityIncrement.ZERO
         self._beta = _velocity_filter_pole(link_velocity_cutoff_hz, dt_s)
         self._state = np.zeros(3 * n_joints)
         self._previous_state = np.zeros(3 * n_joints)

@@ -73,9 +73,9 @@ as the lab's code does: Qe = 10 I on the error, Qx = 1 I on the state increments
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
-from typing import Literal, get_args
 
 import numpy as np
 import scipy.linalg
@@ -95,10 +95,28 @@ from controller.riccati import (
     discrete_lqr_batch,
 )
 
-Coupling = Literal["full", "diagonal", "closed-chain"]
-COUPLINGS: tuple[str, ...] = get_args(Coupling)
-LqrDesign = Literal["euler", "zoh", "continuous-cost"]
-LQR_DESIGNS: tuple[str, ...] = get_args(LqrDesign)
+
+class Coupling(enum.StrEnum):
+    """What of Sm the LQR is designed on: all of it, its diagonal, or the closed chain's."""
+
+    FULL = "full"
+    DIAGONAL = "diagonal"
+    CLOSED_CHAIN = "closed-chain"
+
+
+COUPLINGS: tuple[str, ...] = tuple(member.value for member in Coupling)
+
+
+class LqrDesign(enum.StrEnum):
+    """How the LQR is designed: forward Euler (the lab's), zero-order hold, or the paper's
+    continuous cost (22) over each tick."""
+
+    EULER = "euler"
+    ZOH = "zoh"
+    CONTINUOUS_COST = "continuous-cost"
+
+
+LQR_DESIGNS: tuple[str, ...] = tuple(member.value for member in LqrDesign)
 
 
 def servo_discretisation(design: LqrDesign) -> Discretisation:
@@ -106,7 +124,7 @@ def servo_discretisation(design: LqrDesign) -> Discretisation:
     the lab's Euler with "euler", the exact ZOH otherwise."""
     if design not in LQR_DESIGNS:
         raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {design!r}")
-    return "euler" if design == "euler" else "zoh"
+    return Discretisation.EULER if design == LqrDesign.EULER else Discretisation.ZOH
 
 
 @dataclass(frozen=True)
@@ -329,7 +347,7 @@ def design_on_model(
         )
     )
     r = weights.input_increment_weight * np.eye(n_inputs)
-    if design == "continuous-cost":
+    if design == LqrDesign.CONTINUOUS_COST:
         a_bar, b_bar = augmented_continuous(continuous.a, continuous.b, continuous.c)
         cost = sample_quadratic_cost(a_bar, b_bar, q, r, dt_s)
         # the cross term folded into the state matrix: u = v - Rd^-1 N' x
@@ -350,7 +368,9 @@ def design_on_model(
         batch = discrete_lqr_batch(a_aug[None], b_aug[None], q_aug[None], r_aug[None])
         solution = LqrSolution(batch.gain[0], batch.riccati[0], batch.closed_loop_eigenvalues[0])
     gain = solution.gain if fold is None else solution.gain + fold
-    if design == "continuous-cost":  # w = duc/dt on [e; dx/dt]: duc(k) = -(K_e dt) e - K_x dx(k)
+    if (
+        design == LqrDesign.CONTINUOUS_COST
+    ):  # w = duc/dt on [e; dx/dt]: duc(k) = -(K_e dt) e - K_x dx(k)
         gain = gain.copy()
         gain[:, :n_errors] *= dt_s
     radius = float(np.max(np.abs(solution.closed_loop_eigenvalues)))

@@ -65,7 +65,7 @@ yields as the paper's Kdist did against the paper's gain.
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal, get_args
+import enum
 
 import numpy as np
 import scipy.linalg
@@ -79,6 +79,7 @@ from controller.lqr import (
     LqrWeights,
     TrackingGain,
     design_on_model,
+    servo_discretisation,
 )
 from controller.model import (
     FlexibleJointParams,
@@ -93,10 +94,25 @@ from controller.servo_cascade import (
     cascade_state_space,
 )
 
-ServoModel = Literal["first-order", "cascade"]
-SERVO_MODELS: tuple[str, ...] = get_args(ServoModel)
-KdistReference = Literal["per-tick", "paper-yield"]
-KDIST_REFERENCES: tuple[str, ...] = get_args(KdistReference)
+
+class ServoModel(enum.StrEnum):
+    """The LQR's model of the actuator: the paper's first-order (4), or the cascade."""
+
+    FIRST_ORDER = "first-order"
+    CASCADE = "cascade"
+
+
+SERVO_MODELS: tuple[str, ...] = tuple(member.value for member in ServoModel)
+
+
+class KdistReference(enum.StrEnum):
+    """What Kdist is measured against (see GainDesigner)."""
+
+    PER_TICK = "per-tick"
+    PAPER_YIELD = "paper-yield"
+
+
+KDIST_REFERENCES: tuple[str, ...] = tuple(member.value for member in KdistReference)
 
 
 def _model(
@@ -129,7 +145,7 @@ def _sampled_batch(
     a: np.ndarray, b: np.ndarray, dt_s: float, method: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """(B, s, s), (B, s, m) continuous models sampled at dt_s, Euler or ZOH (batched expm)."""
-    if method == "euler":
+    if method == LqrDesign.EULER:
         return np.eye(a.shape[-1]) + a * dt_s, b * dt_s
     s, m = b.shape[-2:]
     block = np.zeros((a.shape[0], s + m, s + m))
@@ -162,7 +178,7 @@ def _design_diagonal(
     r = np.full((n, 1, 1), weights.input_increment_weight)
     # augmented [e; dx]: (21) continuous for the sampled cost, the discrete form otherwise
     zeros_col = np.zeros((n, size, 1))
-    if method == "continuous-cost":
+    if method == LqrDesign.CONTINUOUS_COST:
         a_bar = np.block([[np.zeros((n, 1, 1)), c], [zeros_col, a]])
         b_bar = np.concatenate([np.zeros((n, 1, 1)), b], axis=1)
         phi, gamma, qd, cross, rd = _van_loan_batch(a_bar, b_bar, q, r, dt_s)
@@ -170,7 +186,7 @@ def _design_diagonal(
         gains = solution.gain.copy()
         gains[:, :, 0] *= dt_s  # w = duc/dt: duc(k) = -(K_e dt) e - K_x dx(k)
     else:
-        a_d, b_d = _sampled_batch(a, b, dt_s, "euler" if method == "euler" else "zoh")
+        a_d, b_d = _sampled_batch(a, b, dt_s, servo_discretisation(method))
         a_aug = np.block([[np.ones((n, 1, 1)), c @ a_d], [zeros_col, a_d]])
         b_aug = np.concatenate([c @ b_d, b_d], axis=1)
         solution = discrete_lqr_batch(a_aug, b_aug, q, r)
@@ -232,7 +248,7 @@ class GainDesigner:
             raise ValueError(f"LQR design must be one of {LQR_DESIGNS}, got {method!r}")
         if coupling not in COUPLINGS:
             raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
-        if servo is not None and method == "euler":
+        if servo is not None and method == LqrDesign.EULER:
             raise ValueError(
                 "the servo cascade's fast pole (~ -(kv + b + D) / J) lies beyond forward "
                 "Euler's limit -2/dt: design it with 'zoh' or 'continuous-cost'"
@@ -247,20 +263,20 @@ class GainDesigner:
     def design(self, sm: np.ndarray) -> TrackingGain:
         """The gain for this Sm (validated by the caller: `controller.model.validate_sm`)."""
         gain = self._design(sm)
-        if self.kdist_reference == "paper-yield":
+        if self.kdist_reference == KdistReference.PAPER_YIELD:
             scale = paper_yield_scale(self.joints, sm, gain)
             gain = dataclasses.replace(gain, dob_gain_scale=scale)
         return gain
 
     def _design(self, sm: np.ndarray) -> TrackingGain:
         n = self.joints.n_joints
-        if self.coupling == "diagonal":
+        if self.coupling == Coupling.DIAGONAL:
             gain, radius, motor_states = _design_diagonal(
                 self.joints, sm, self.dt_s, self.weights, self.method, self.servo
             )
             return _tracking_gain(gain, n, motor_states, self.dt_s, radius)
         full, motor_states = _model(self.joints, sm, self.servo)
-        basis = motion_subspace(sm) if self.coupling == "closed-chain" else None
+        basis = motion_subspace(sm) if self.coupling == Coupling.CLOSED_CHAIN else None
         if basis is not None and basis.shape[1] == n:
             basis = None  # nonsingular Sm: the chain's coordinates are the joints'
         model = full if basis is None else chain_coordinates(full, basis, motor_states * n)

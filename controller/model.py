@@ -25,8 +25,8 @@ Units: angles rad, velocities rad/s, K N m/rad, D N m s/rad, Kp 1/s, Sm 1/(kg m^
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
-from typing import Literal, get_args
 
 import numpy as np
 import scipy.linalg
@@ -37,8 +37,15 @@ PAPER_STIFFNESS_NM_PER_RAD = 2000.0
 PAPER_DAMPING_NMS_PER_RAD = 100.0
 PAPER_SERVO_GAIN_PER_S = 10.0
 
-Discretisation = Literal["zoh", "euler"]
-DISCRETISATIONS: tuple[str, ...] = get_args(Discretisation)
+
+class Discretisation(enum.StrEnum):
+    """How a continuous model is sampled: zero-order hold or forward Euler."""
+
+    ZOH = "zoh"
+    EULER = "euler"
+
+
+DISCRETISATIONS: tuple[str, ...] = tuple(member.value for member in Discretisation)
 
 
 def per_joint_array(value: object, what: str, n_joints: int | None = None) -> np.ndarray:
@@ -201,14 +208,14 @@ def discretise(
     if not (np.isfinite(dt_s) and dt_s > 0):
         raise ValueError(f"dt_s must be finite and > 0, got {dt_s}")
     n_states, n_inputs = system.b.shape
-    if method == "zoh":
+    if method == Discretisation.ZOH:
         block = np.zeros((n_states + n_inputs, n_states + n_inputs))
         block[:n_states, :n_states] = system.a
         block[:n_states, n_states:] = system.b
         exponential = scipy.linalg.expm(block * dt_s)
         a_d = exponential[:n_states, :n_states]
         b_d = exponential[:n_states, n_states:]
-    elif method == "euler":
+    elif method == Discretisation.EULER:
         a_d = np.eye(n_states) + system.a * dt_s
         b_d = system.b * dt_s
     else:

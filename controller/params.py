@@ -160,7 +160,7 @@ class ControllerParams:
                 f"composition must be one of {COMPOSITION_READINGS}, got {self.composition!r}"
             )
         integral = self.dob_integral_time_s
-        if (self.composition == "accumulated-integral") != (integral is not None):
+        if (self.composition == CompositionReading.ACCUMULATED_INTEGRAL) != (integral is not None):
             raise ValueError(
                 "dob_integral_time_s is required by composition 'accumulated-integral' and "
                 f"refused otherwise (composition {self.composition!r}, {integral})"
@@ -198,7 +198,7 @@ class ControllerParams:
                 raise ValueError(
                     f"servo_cascade has {cascade.n_joints} joints, not {self.n_joints}"
                 )
-            if self.discretisation == "euler":
+            if self.discretisation == LqrDesign.EULER:
                 raise ValueError(
                     "the servo cascade cannot be designed by forward Euler (its fast pole lies "
                     "beyond -2/dt): use discretisation 'zoh' or 'continuous-cost'"

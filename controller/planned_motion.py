@@ -24,10 +24,19 @@ The humanoid fields are None where no CoM or feet are planned.
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+
+class GcLoad(enum.StrEnum):
+    """What the gravity compensator (5)-(7) holds where a motion is planned: the static weight
+    split at the CoM (the paper's), or the ground reaction the plan needs split at its ZMP."""
+
+    WEIGHT = "weight"
+    PLANNED_MOTION = "planned-motion"
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from controller import ControllerKind, TrackingGain, design_discrete_tracking_lqr
+from controller import ControllerKind, Coupling, TrackingGain, design_discrete_tracking_lqr
 from controller.model import validate_sm
 from drivers.timing import DurationStats as Distribution
 from hil.config import Config
@@ -53,7 +53,7 @@ def bench_gain_schedule(base: Config, designs: int = 20) -> dict[str, Any] | Non
     designer = params.gain_designer(period_s)
     scipy_designer = dataclasses.replace(params).gain_designer(period_s)
     scipy_designer.reference_solver = True
-    diagonal = params.lqr_coupling == "diagonal"
+    diagonal = params.lqr_coupling == Coupling.DIAGONAL
 
     def before(sm: np.ndarray) -> object:
         if not diagonal:

@@ -6,14 +6,18 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, model_validator
 
 from controller import (
-    COMPOSITION_READINGS,
     LAB_KDIST_RAMP_S,
-    LINK_VELOCITY_INCREMENTS,
-    LQR_DESIGNS,
+    CompositionReading,
+    Coupling,
     GcCompliance,
+    GcLoad,
+    KdistReference,
+    LinkVelocityIncrement,
+    LqrDesign,
+    ServoModel,
 )
 from controller.walking import CenterOfMassMeasurement
 from hil.config.section import Section
@@ -69,11 +73,11 @@ class ModelSection(Section):
 
     robot: Literal["single_link", "dyros-jet"] = "single_link"
     description: str | None = None
-    sm_coupling: Literal["diagonal", "full", "closed-chain"] = "diagonal"
+    sm_coupling: Coupling = Field(Coupling.DIAGONAL, strict=False)
     gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
     sm_contact: Literal["both-feet", "support-foot"] = "both-feet"
     sm_standing_foot: Literal["left", "right"] = "left"
-    servo_model: Literal["first-order", "cascade"] = "first-order"
+    servo_model: ServoModel = Field(ServoModel.FIRST_ORDER, strict=False)
     stiffness_nm_per_rad: float = Field(2000.0, gt=0)
     damping_nms_per_rad: float = Field(100.0, ge=0)
     servo_gain_per_s: float = Field(10.0, gt=0)
@@ -121,7 +125,7 @@ class ControllerSection(Section):
     name: str = Field(str(ControllerKind.GC_LQR_DOB), min_length=1)
     params: dict[str, Any] = Field(default_factory=dict)
     gc_compliance: GcCompliance = Field(GcCompliance.JOINT, strict=False)
-    gc_load: Literal["weight", "planned-motion"] = "weight"
+    gc_load: GcLoad = Field(GcLoad.WEIGHT, strict=False)
     kdist: float = Field(1.0, ge=0)
     kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
     q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
@@ -129,46 +133,28 @@ class ControllerSection(Section):
     r_input: float = Field(1.0, gt=0)
     dob_cutoff_hz: float | None = Field(None, gt=0)  # the Q filter by its cut-off, or ...
     dob_filter_pole: float | None = Field(None, ge=0, lt=1)  # ... by its pole; neither: 0.7
-    composition: str = "accumulated"  # the reading of (25)
+    composition: CompositionReading = Field(CompositionReading.ACCUMULATED, strict=False)
     dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
-    discretization: str = "euler"  # the LQR design
-    kdist_reference: Literal["per-tick", "paper-yield"] = "per-tick"  # what Kdist yields against
+    discretization: LqrDesign = Field(LqrDesign.EULER, strict=False)  # the LQR design
+    kdist_reference: KdistReference = Field(KdistReference.PER_TICK, strict=False)
     reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments
     servo_feedforward: bool = False  # with a plan: the goal leads by the servo's lag, v / Kp
     dob_expects_gravity_lag: bool = False  # the DOB's nominal servo lags under ug's load
-    link_velocity_increment: str = "backward-difference"
-
-    @field_validator("composition")
-    @classmethod
-    def _composition(cls, value: str) -> str:
-        return _one_of(value, COMPOSITION_READINGS)
-
-    @field_validator("discretization")
-    @classmethod
-    def _discretization(cls, value: str) -> str:
-        return _one_of(value, LQR_DESIGNS)
-
-    @field_validator("link_velocity_increment")
-    @classmethod
-    def _increment(cls, value: str) -> str:
-        return _one_of(value, LINK_VELOCITY_INCREMENTS)
+    link_velocity_increment: LinkVelocityIncrement = Field(
+        LinkVelocityIncrement.BACKWARD_DIFFERENCE, strict=False
+    )
 
     @model_validator(mode="after")
     def _filter_and_reading(self) -> ControllerSection:
         if self.dob_cutoff_hz is not None and self.dob_filter_pole is not None:
             raise ValueError("give dob_cutoff_hz or dob_filter_pole, not both")
-        if self.composition == "accumulated-integral" and self.dob_integral_time_s is None:
+        reading = CompositionReading.ACCUMULATED_INTEGRAL
+        if self.composition is reading and self.dob_integral_time_s is None:
             raise ValueError(
                 "composition 'accumulated-integral' needs dob_integral_time_s (the servo's "
                 "velocity-loop integral time; `hil identify` measures it)"
             )
         return self
-
-
-def _one_of(value: str, choices: tuple[str, ...]) -> str:
-    if value not in choices:
-        raise ValueError(f"must be one of {list(choices)}")
-    return value
 
 
 class WalkingSection(Section):

@@ -18,6 +18,8 @@ from pydantic import Field, field_validator, model_validator
 
 from controller import (
     COMPOSITION_READINGS,
+    LqrDesign,
+    ServoModel,
 )
 from hil.config.control_sections import (
     ControllerSection,
@@ -292,7 +294,8 @@ class ConfigFile(Section):
         unknown = sorted(set(self.model.joint) - {j.name for j in self.joints})
         if unknown:
             raise ValueError(f"[model.joint] names joints that do not exist: {unknown}")
-        if self.model.servo_model == "cascade" and self.controller.discretization == "euler":
+        cascade = self.model.servo_model is ServoModel.CASCADE
+        if cascade and self.controller.discretization is LqrDesign.EULER:
             raise ValueError(
                 "[model] servo_model = 'cascade' with [controller] discretization = 'euler': "
                 "the cascade's fast pole lies beyond forward Euler's reach at this rate; use "

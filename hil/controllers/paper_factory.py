@@ -5,12 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from controller import (
+    CompositionReading,
     ControllerParams,
     FlexibleJointParams,
     GcCompliance,
     JointController,
     LqrWeights,
     ServoCascadeParams,
+    ServoModel,
     joint_static_compliance,
     make_controller,
 )
@@ -51,7 +53,7 @@ def gc_compliance(config: Config, reading: GcCompliance | None = None) -> np.nda
 def servo_cascade(config: Config) -> ServoCascadeParams | None:
     """The LQR's servo model from [model]: None for the paper's first-order (4), else the
     cascade's figures per joint."""
-    if config.model.servo_model != "cascade":
+    if config.model.servo_model is not ServoModel.CASCADE:
         return None
     return ServoCascadeParams(
         velocity_gain_nms_per_rad=model_figures(config, "velocity_gain_nms_per_rad"),
@@ -76,7 +78,7 @@ def build_controller(
     robot = robot or robot_model(config)
     start = np.zeros(n) if start_rad is None else np.asarray(start_rad, dtype=float)
     reading = choice.reading or section.composition
-    if reading == "accumulated-integral" and section.dob_integral_time_s is None:
+    if reading == CompositionReading.ACCUMULATED_INTEGRAL and section.dob_integral_time_s is None:
         raise ConfigError(
             f"{config.source} [controller] dob_integral_time_s: the reading "
             "'accumulated-integral' needs it (the servo's velocity-loop integral time)"
@@ -94,7 +96,9 @@ def build_controller(
         dob_filter_pole=section.dob_filter_pole,
         composition=reading,  # type: ignore[arg-type]
         dob_integral_time_s=(
-            section.dob_integral_time_s if reading == "accumulated-integral" else None
+            section.dob_integral_time_s
+            if reading == CompositionReading.ACCUMULATED_INTEGRAL
+            else None
         ),
         discretisation=section.discretization,  # type: ignore[arg-type]
         link_velocity_increment=section.link_velocity_increment,  # type: ignore[arg-type]

@@ -19,7 +19,7 @@ import abc
 
 import numpy as np
 
-from controller import GravityModel, PendulumGravity
+from controller import Coupling, GcLoad, GravityModel, PendulumGravity
 from hil.config import Config, ConfigError, robot_description_text
 
 
@@ -94,7 +94,9 @@ class HumanoidLegs(RobotModel):
         self.gravity = HumanoidLegGravity(self.leg_model, SupportState.DOUBLE)
         self._inertia = ContactProjectedInertia(self.leg_model)
         # "closed-chain" designs on the whole Sm (controller/closed_chain.py); the others as named
-        self._coupling = SmCoupling.FULL if coupling == "closed-chain" else SmCoupling(coupling)
+        self._coupling = (
+            SmCoupling.FULL if coupling == Coupling.CLOSED_CHAIN else SmCoupling(str(coupling))
+        )
         self.lqr_coupling = coupling
         self._contact_rule = SmContactRule(contact_rule)
         self._standing_foot = LqrContact(f"{standing_foot}-foot")
@@ -131,6 +133,6 @@ def robot_model(config: Config) -> RobotModel:
             config.joint_names,
             model.sm_contact,
             model.sm_standing_foot,
-            planned_load=config.controller.gc_load == "planned-motion",
+            planned_load=config.controller.gc_load is GcLoad.PLANNED_MOTION,
         )
     return SingleLinks(len(config.joints), model.link_inertia_kg_m2, model.gravity_moment_kg_m)

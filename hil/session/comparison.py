@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from controller import CompositionReading
 from controller.gravity import GcCompliance
 from hil.config import ConfigError, robot_of
 from hil.experiments import (
@@ -119,7 +120,8 @@ def comparison_plan(
     default_reading: str, *, long_runs: bool = True
 ) -> list[tuple[Experiment, ControllerChoice]]:
     """The runs of the testbed comparison, in order (see the module docstring)."""
-    other = "literal" if default_reading == "accumulated" else "accumulated"
+    accumulated = CompositionReading.ACCUMULATED
+    other = CompositionReading.LITERAL if default_reading == accumulated else accumulated
     dob = ControllerKind.GC_LQR_DOB
     choices = [*COMPARISON_CHOICES, ControllerChoice(dob, OTHER_READING_KDIST, other)]
     plan = [(experiment, choice) for experiment in (CONTACT, IMPACT) for choice in choices]

@@ -24,6 +24,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from controller import CompositionReading
 from drivers.joint_bus import JointBus
 from hil.config import Config, robot_of
 from hil.experiments import Experiment
@@ -183,7 +184,8 @@ class Session:
         """The choice with its reading of (25) named when the configuration's is not the lab's
         default (so that the label and the directory say so)."""
         composition = self.config.controller.composition
-        if choice.reading is None and composition != "accumulated" and choice.ref.has_composition:
+        lab = CompositionReading.ACCUMULATED
+        if choice.reading is None and composition != lab and choice.ref.has_composition:
             return choice.with_reading(composition)
         return choice
 
