@@ -56,9 +56,13 @@ class Config(ConfigFile):
         for name, value in sections.items():
             key = "joint" if name == "joints" else name
             if isinstance(value, list | tuple):
-                raw[key] = [v.model_dump() if hasattr(v, "model_dump") else v for v in value]
+                raw[key] = [
+                    v.model_dump(warnings=False) if hasattr(v, "model_dump") else v for v in value
+                ]
             else:
-                raw[key] = value.model_dump() if hasattr(value, "model_dump") else value
+                raw[key] = (
+                    value.model_dump(warnings=False) if hasattr(value, "model_dump") else value
+                )
         return _validated(raw, self.source)
 
     def record(self) -> dict[str, Any]:
