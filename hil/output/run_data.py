@@ -58,6 +58,7 @@ if TYPE_CHECKING:
 _INTEGERS = frozenset({"tick", "skipped_ticks", *INTEGER_COLUMNS})
 _TEXT = frozenset({"supervisor_state", "phase"})
 _NO_SUMMARY = "no summary.json: the run did not finish writing its record"
+_TORN_SUMMARY = "summary.json is torn (not whole JSON)"
 
 
 class NotARunDirectory(ValueError):
@@ -356,8 +357,8 @@ def _summary_problem(directory: Path) -> str | None:
         return _NO_SUMMARY
     try:
         json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError) as exc:
-        return f"summary.json is torn or not JSON ({exc})"
+    except ValueError:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        return _TORN_SUMMARY
     return None
 
 
