@@ -196,18 +196,29 @@ def _labels(runs: Sequence[Run]) -> list[str]:
 
 
 def _styles(choices: Sequence[ControllerChoice]) -> list[LineStyle]:
-    """The paper's style for its controllers while distinct; a colour of its own otherwise."""
-    styles: list[LineStyle] = []
-    lines = [(colour, line) for line in _LINESTYLES for colour in _COLOURS]
-    used: set[tuple[str, str]] = set()
-    for number, choice in enumerate(choices):
+    """The paper's style for its controllers while distinct; for every other run a colour no
+    other run has (then a colour and line style no other run has)."""
+    styles: list[LineStyle | None] = []
+    for choice in choices:
         style = comparison_style(choice) if choice.kind is not None else None
-        if style is None or (style.color, style.linestyle) in used:
-            free = [line for line in lines if line not in used] or [lines[number % len(lines)]]
+        taken = {(s.color, s.linestyle) for s in styles if s is not None}
+        styles.append(
+            style if style is not None and (style.color, style.linestyle) not in taken else None
+        )
+    pairs = [(colour, line) for line in _LINESTYLES for colour in _COLOURS]
+    chosen: list[LineStyle] = []
+    for number, style in enumerate(styles):
+        if style is None:
+            others = [s for s in (*chosen, *styles[number + 1 :]) if s is not None]
+            colours = {s.color for s in others}
+            free = (
+                [(c, "-") for c in _COLOURS if c not in colours]
+                or [p for p in pairs if p not in {(s.color, s.linestyle) for s in others}]
+                or [pairs[number % len(pairs)]]
+            )
             style = LineStyle(*free[0], 1.6, 1.0, True)
-        used.add((style.color, style.linestyle))
-        styles.append(style)
-    return styles
+        chosen.append(style)
+    return chosen
 
 
 def _built_in(run: Run) -> Experiment | None:

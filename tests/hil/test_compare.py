@@ -147,3 +147,14 @@ def test_a_run_whose_log_lacks_a_signal_is_compared(
     assert code == 0
     assert "note: gc+lqr+dob (Kdist 1): its log has no motor_current_a" in out
     assert (tmp_path / "out" / "signals.png").is_file()
+
+
+def test_runs_the_paper_styles_cannot_tell_apart_get_a_colour_no_other_run_has() -> None:
+    from hil.session.compare_runs import _styles
+    from hil.vocabulary import ControllerChoice, ControllerKind
+
+    # two GC runs (the record does not say the compliance of (8) apart from the label) and pid
+    styles = _styles([ControllerChoice(ControllerKind.GC)] * 2 + [ControllerChoice("pid")])
+    colours = [style.color for style in styles]
+    assert colours[0] == "0.45" and colours[2] == "tab:blue"  # the paper's
+    assert colours[1] not in (colours[0], colours[2])
