@@ -10,6 +10,7 @@
     hil monitor [--config FILE | --attach JSON] [--json] [--rate HZ] [--duration S]
     hil calibrate [--config FILE] [--attach JSON] [--seconds S] [--pose [NAME=]RAD] [--write]
     hil identify LOG_DIR... [--json] [--config FILE] [--figure PATH]
+    hil compare RUN_DIR RUN_DIR... [--out DIR]   runs of one experiment side by side
     hil sweep SPEC [--address ADDR] [--workers N] [--out DIR] [--list] [--json]
     hil bench bus|loop|soak|sweep [--json]
     hil config                 print the sample configuration file
@@ -86,6 +87,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.identify import cmd_identify
 
         return cmd_identify(args)
+    if args.command == "compare":
+        from hil.cli.compare import cmd_compare
+
+        return cmd_compare(args)
     if args.command == "sweep":
         from hil.cli.sweep import cmd_sweep
 

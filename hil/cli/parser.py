@@ -172,6 +172,21 @@ def _add_identify(sub: argparse._SubParsersAction) -> None:
     )
 
 
+def _add_compare(sub: argparse._SubParsersAction) -> None:
+    compare = sub.add_parser(
+        "compare",
+        help="overlay runs of one experiment and put their metrics side by side",
+        description="Any two or more run directories of one experiment (any controller, any "
+        "configuration): their figures overlaid, their metrics and endings in one table, and "
+        "report.md with the figures in --out. Reads the directories only.",
+    )
+    compare.add_argument("runs", nargs="+", type=Path, metavar="RUN_DIR", help="run directories")
+    compare.add_argument(
+        "--out", type=Path, help="where report.md and the figures go (default: a new "
+        "runs/TIMESTAMP-compare-EXPERIMENT)",
+    )  # fmt: skip
+
+
 def _add_sweep(sub: argparse._SubParsersAction) -> None:
     sweep = sub.add_parser(
         "sweep",
@@ -240,6 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     _add_identify(sub)
+    _add_compare(sub)
     _add_sweep(sub)
 
     _add_bringup(sub)

@@ -17,6 +17,9 @@ An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
                     them instead of stepping the controller (the supervisor still limits them)
     parameters      what meta.json records of the experiment beyond its name
     metrics         the figures it reports, over all joints, from a run's log
+    derived_series  per-tick series it derives from the log for plots and analysis (the
+                    humanoid's ZMP, CoM and pelvis tilt: kinematics.csv), written beside the
+                    log after the run (hil/output/series.py); None (the default): none
     marks           what its plots mark (the obstacle, the pushes, the first contact)
     comparison      its figure across controllers, the paper's claims it checks (`relations`)
                     and the metrics columns of the report table
@@ -40,6 +43,7 @@ from hil.output.plots import Push as PushMark
 from hil.output.records import RunEntry
 from hil.output.report import Column, Relation
 from hil.output.rundir import RunData
+from hil.output.series import DerivedSeries
 from hil.vocabulary import ControllerChoice
 
 
@@ -212,6 +216,20 @@ class Experiment(abc.ABC):
     @abc.abstractmethod
     def metrics(self, run: RunData) -> dict[str, Any]:
         """The figures this experiment reports, from a run's log (over all joints)."""
+
+    def derived_series(self, run: RunData) -> DerivedSeries | None:
+        """Per-tick series derived from a finished run's log (its summary.json written), from
+        the same computation as `metrics`: `hil run` writes them as `file_name` into the run
+        directory (hil/output/series.py). None (the default): this experiment has none.
+
+        Example, a plug-in's tracking error per tick (errors.csv)::
+
+            def derived_series(self, run):
+                error = run.signal("link_angle_rad") - run.signal("reference_rad")
+                columns = {"tick": run.columns["tick"], "time_s": run.time_s, "error_rad": error}
+                return DerivedSeries("errors.csv", columns)
+        """
+        return None
 
     def marks(self, run: RunData) -> WorldMarks:
         """What a plot of this run marks; times in loop time (after any re-homing)."""

@@ -23,6 +23,10 @@ Metrics (loop time; "settled" = after SETTLE_S of the experiment):
                           pelvis tilted more than FALL_TILT_RAD
     push: zmp_excursion_m (largest distance from the ZMP just before the push) and
           recovery_time_s (from the push until the ZMP stays within RECOVERED_M of it)
+
+Per tick (`derived_series`): kinematics.csv in the run directory, the ZMP, its desired value,
+the CoM, the pelvis tilt, the support margin and the feet's vertical forces that these metrics
+are computed from (hil/output/series.py).
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ from hil.output.plots import Push as PushMark
 from hil.output.records import RunEntry
 from hil.output.report import Column, Missing, Relation, check, find, metric, number
 from hil.output.rundir import RunData
+from hil.output.series import DerivedSeries, kinematics_series
 from hil.vocabulary import ControllerKind
 
 SETTLE_S = 1.0  # the robot starts unloaded on its springs: the first second is the settling
@@ -64,11 +69,16 @@ FEET = ("left_foot", "right_foot")
 
 @dataclass(frozen=True)
 class StandingKinematics:
-    """Per tick, from the measured link angles and the foot sensors: ZMP, CoM, pelvis tilt."""
+    """Per tick, from the measured link angles and the foot sensors: ZMP (ticks x 2, NaN where
+    the feet carry nothing), each foot's vertical force (ticks x 2: left, right), pelvis tilt,
+    CoM (ticks x 3), the ZMP's margin inside the support polygon (negative: outside), standing
+    on the left sole at the origin."""
 
-    zmp_m: np.ndarray  # ticks x 2 (NaN where the feet carry nothing)
+    zmp_m: np.ndarray
     vertical_n: np.ndarray
     tilt_rad: np.ndarray
+    com_m: np.ndarray
+    margin_m: np.ndarray
     support_polygon: tuple[float, float, float, float]  # x min, x max, y min, y max
 
     @classmethod
@@ -82,8 +92,9 @@ class StandingKinematics:
         }
         ticks = links.shape[0]
         zmp = np.full((ticks, 2), np.nan)
-        vertical = np.zeros(ticks)
+        vertical = np.zeros((ticks, 2))
         tilt = np.full(ticks, np.nan)
+        com = np.full((ticks, 3), np.nan)
         for k in range(ticks):
             if not np.isfinite(links[k]).all():
                 continue
@@ -96,11 +107,16 @@ class StandingKinematics:
                 if np.isfinite(w).all():
                     placement = model.ft_sensor_placement(side)
                     feet.append(FootWrench(w[:3], w[3:], placement.translation, placement.rotation))
-                    vertical[k] += (placement.rotation @ w[:3])[2]
+                    vertical[k, side] = (placement.rotation @ w[:3])[2]
             with contextlib.suppress(NoSupportError, ValueError):
                 zmp[k] = zmp_from_foot_wrenches(feet)
+            com[k] = model.centre_of_mass(q)
         polygon = _support_polygon(model, links[0])
-        return cls(zmp, vertical, tilt, polygon)
+        x_min, x_max, y_min, y_max = polygon
+        margin = np.minimum.reduce(
+            [zmp[:, 0] - x_min, x_max - zmp[:, 0], zmp[:, 1] - y_min, y_max - zmp[:, 1]]
+        )
+        return cls(zmp, vertical, tilt, com, margin, polygon)
 
 
 def _support_polygon(model: Any, links: np.ndarray) -> tuple[float, float, float, float]:
@@ -160,6 +176,15 @@ class HumanoidStandingExperiment(Experiment):
         if self.world.pelvis_pushes:
             metrics.update(self._push_metrics(run, kinematics))
         return metrics
+
+    def derived_series(self, run: RunData) -> DerivedSeries:
+        """kinematics.csv (hil/output/series.py): every log row's ZMP, desired ZMP, CoM,
+        pelvis tilt, support margin and the feet's vertical forces, as `metrics` sees them."""
+        k = StandingKinematics.of(run)
+        return kinematics_series(
+            run.columns["tick"], run.time_s, k.zmp_m, self._desired_zmp(), k.com_m,
+            k.tilt_rad, k.margin_m, k.vertical_n,
+        )  # fmt: skip
 
     def _push_metrics(self, run: RunData, kinematics: StandingKinematics) -> dict[str, Any]:
         push = self.world.pelvis_pushes[0]
@@ -257,15 +282,8 @@ def _max(values: np.ndarray) -> float | None:
 
 
 def _fell(kinematics: StandingKinematics, run: RunData, weight_n: float) -> bool:
-    x_min, x_max, y_min, y_max = kinematics.support_polygon
-    zmp = kinematics.zmp_m
-    outside = ~(
-        (zmp[:, 0] >= x_min - FALL_MARGIN_M)
-        & (zmp[:, 0] <= x_max + FALL_MARGIN_M)
-        & (zmp[:, 1] >= y_min - FALL_MARGIN_M)
-        & (zmp[:, 1] <= y_max + FALL_MARGIN_M)
-    )
-    unloaded = kinematics.vertical_n < 0.5 * weight_n
+    outside = ~(kinematics.margin_m >= -FALL_MARGIN_M)  # NaN (no ZMP) counts as outside
+    unloaded = kinematics.vertical_n.sum(axis=1) < 0.5 * weight_n
     started = run.time_s >= run.experiment_start_s + SETTLE_S
     period = float(np.median(np.diff(run.time_s))) if run.time_s.size > 1 else 0.005
     window = max(1, round(FALL_TIME_S / period))

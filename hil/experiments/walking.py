@@ -38,6 +38,10 @@ the end of the final one):
                                           then took at least LANDED_SHARE of the weight before
                                           the next lift-off, with the robot not fallen by then
     stopped_early                         the run ended (a safety stop) before the walk's end
+
+Per tick (`derived_series`): kinematics.csv in the run directory, the measured and the planned
+ZMP, the CoM, the pelvis tilt, the support margin and the feet's vertical forces these metrics
+are computed from (hil/output/series.py).
 """
 
 from __future__ import annotations
@@ -66,6 +70,7 @@ from hil.output.plots import ComparisonRun, WorldMarks
 from hil.output.records import RunEntry
 from hil.output.report import Column, Relation, number
 from hil.output.rundir import RunData
+from hil.output.series import DerivedSeries, kinematics_series
 from hil.vocabulary import ControllerChoice
 
 SLOW_TIMING_S = (0.8, 3.2)  # single, double support (Sec. IV-C)
@@ -284,6 +289,16 @@ class WalkingExperiment(Experiment):
                 kinematics.object_foot_height_m(self) if stepped else None
             )
         return metrics
+
+    def derived_series(self, run: RunData) -> DerivedSeries:
+        """kinematics.csv (hil/output/series.py): from the walk's start, every log row's ZMP,
+        the pattern's ZMP, CoM, pelvis tilt, support margin and the feet's vertical forces, as
+        `metrics` sees them."""
+        k = WalkingKinematics.of(run, self)
+        return kinematics_series(
+            run.columns["tick"][k.rows], run.time_s[k.rows], k.zmp_m, k.desired_zmp_m,
+            k.com_m, k.tilt_rad, k.margin_m, k.vertical_n,
+        )  # fmt: skip
 
     def marks(self, run: RunData) -> WorldMarks:
         return WorldMarks(title=self.title, experiment=self.name)

@@ -66,16 +66,19 @@ class PlannedWalk(Protocol):
 
 @dataclass(frozen=True)
 class WalkingKinematics:
-    """Per log row, from the measured link angles and the foot sensors (module docstring):
-    time_s (experiment time), zmp_m and desired_zmp_m (n, 2), vertical_n (n, 2) per foot,
-    tilt_rad (n,), sole_centre_m (n, 2, 3) and sole_yaw_rad (n, 2), margin_m (n,) the ZMP's
-    distance inside the support polygon of the soles in contact (negative: outside)."""
+    """Per log row from the experiment's start, from the measured link angles and the foot
+    sensors (module docstring): rows (n,) which rows of the log, time_s (experiment time), zmp_m and
+    desired_zmp_m (n, 2), vertical_n (n, 2) per foot, tilt_rad (n,), com_m (n, 3),
+    sole_centre_m (n, 2, 3) and sole_yaw_rad (n, 2), margin_m (n,) the ZMP's distance inside
+    the support polygon of the soles in contact (negative: outside); in the plan's frame."""
 
+    rows: np.ndarray
     time_s: np.ndarray
     zmp_m: np.ndarray
     desired_zmp_m: np.ndarray
     vertical_n: np.ndarray
     tilt_rad: np.ndarray
+    com_m: np.ndarray
     sole_centre_m: np.ndarray
     sole_yaw_rad: np.ndarray
     margin_m: np.ndarray
@@ -103,6 +106,7 @@ class WalkingKinematics:
         zmp = np.full((n, 2), np.nan)
         vertical = np.zeros((n, 2))
         tilt = np.full(n, np.nan)
+        com = np.full((n, 3), np.nan)
         soles = np.full((n, 2, 3), np.nan)
         yaws = np.full((n, 2), np.nan)
         half = [box.size_m[:2] / 2.0 for box in model.sole_boxes]
@@ -131,9 +135,14 @@ class WalkingKinematics:
             contact = [s for s in (0, 1) if vertical[k, s] > CONTACT_SHARE * weight]
             if contact and np.isfinite(zmp[k]).all():
                 margin[k] = polygon_margin(zmp[k], soles[k], yaws[k], half, contact)
+            com[k] = model.centre_of_mass(q)
         desired = pattern.zmp_reference_m[ticks]
         period = float(np.median(np.diff(time_s))) if n > 1 else pattern.dt_s
-        return cls(time_s, zmp, desired, vertical, tilt, soles, yaws, margin, links, weight, period)
+        rows = np.flatnonzero(keep)
+        return cls(
+            rows, time_s, zmp, desired, vertical, tilt, com, soles, yaws, margin, links, weight,
+            period,
+        )  # fmt: skip
 
     def fall_time_s(self) -> float | None:
         """When the robot fell (module docstring), None if it did not."""

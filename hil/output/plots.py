@@ -314,18 +314,21 @@ def comparison_style(choice: ControllerChoice) -> LineStyle:
 
 @dataclass(frozen=True)
 class ComparisonRun:
-    """One run in a comparison figure: its controller and its data."""
+    """One run in a comparison figure: its controller and its data; `name` and `line` when the
+    legend and the line are not the controller's (`hil compare`: two runs of one controller)."""
 
     choice: ControllerChoice
     run: RunData
+    name: str | None = None
+    line: LineStyle | None = None
 
     @property
     def label(self) -> str:
-        return self.choice.label
+        return self.name if self.name is not None else self.choice.label
 
     @property
     def style(self) -> LineStyle:
-        return comparison_style(self.choice)
+        return self.line if self.line is not None else comparison_style(self.choice)
 
 
 def in_drawing_order(runs: Sequence[ComparisonRun]) -> list[ComparisonRun]:

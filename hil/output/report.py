@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -136,13 +136,17 @@ def number(digits: str) -> Callable[[Any], str]:
 
 
 def _columns_for(entries: Sequence[RunEntry], known: Sequence[Column]) -> list[Column]:
-    """The known columns these runs have, then any other numeric metric (text, such as a
-    note on why a figure is missing, stays in report.json)."""
+    return metric_columns([entry.result.metrics for entry in entries], known)
+
+
+def metric_columns(metrics: Sequence[Mapping[str, Any]], known: Sequence[Column]) -> list[Column]:
+    """The known columns these runs' metrics have, then any other numeric metric (text, such
+    as a note on why a figure is missing, stays in report.json)."""
     keys: list[str] = []
-    for entry in entries:
+    for figures in metrics:
         keys += [
             k
-            for k, v in entry.result.metrics.items()
+            for k, v in figures.items()
             if k not in keys and (v is None or isinstance(v, int | float))
         ]
     by_key = {c.key: c for c in known}

@@ -120,16 +120,22 @@ def load_run(out_dir: Path) -> RunData:
         out_dir=out_dir,
         columns=columns,
         meta=_read_json(out_dir / "meta.json"),
-        summary=_read_json(out_dir / "summary.json"),
+        summary=_read_json(out_dir / "summary.json", torn_ok=True),  # written last: may be torn
         events=tuple(events),
         joint_names=suffixed or ("",),
     )
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def _read_json(path: Path, *, torn_ok: bool = False) -> dict[str, Any]:
+    """A JSON file's object ({} if there is none; torn_ok: also if it is not whole JSON)."""
     if not path.is_file():
         return {}
-    return json.loads(path.read_text())
+    try:
+        return json.loads(path.read_text())
+    except ValueError:
+        if torn_ok:
+            return {}
+        raise
 
 
 def add_to_summary(out_dir: Path, key: str, value: Any) -> None:

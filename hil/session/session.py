@@ -34,6 +34,7 @@ from hil.output.plots import plot_run
 from hil.output.progress import Progress
 from hil.output.records import UNMEASURED, RunResult
 from hil.output.rundir import add_to_summary, create_run_dir, load_run, timestamp
+from hil.output.series import write_series
 from hil.output.strict_json import dumps
 from hil.output.versions import package_versions
 from hil.vocabulary import ControllerChoice, EmulatorClock
@@ -239,6 +240,8 @@ class Session:
             warn_torque_not_off(result)
         if faults:
             self._record_fault_counts(out_dir, faults)
+        if result.ticks > 1:
+            self._write_derived_series(experiment, out_dir)
         if self.plots and result.ticks > 1:
             try:
                 run = load_run(out_dir)
@@ -248,6 +251,16 @@ class Session:
         if print_result:
             self._print_result(experiment, choice, result)
         return result
+
+    def _write_derived_series(self, experiment: Experiment, out_dir: Path) -> None:
+        """The experiment's per-tick series beside log.csv (kinematics.csv on the humanoid:
+        hil/output/series.py), from the finished run's record."""
+        try:
+            series = experiment.derived_series(load_run(out_dir))
+            if series is not None:
+                write_series(out_dir, series)
+        except Exception as exc:  # noqa: BLE001 - a derived file must not lose a run
+            self.say(f"  (the per-tick series failed: {type(exc).__name__}: {exc})")
 
     def _record_fault_counts(self, out_dir: Path, faults: tuple[FaultEvent, ...]) -> None:
         """What the emulator says its injected faults did, into summary.json; a fault that never

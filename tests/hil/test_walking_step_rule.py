@@ -59,11 +59,13 @@ def _walk(end_s: float | None = None) -> dict[str, np.ndarray]:
 def _kinematics(walk: dict[str, np.ndarray]) -> WalkingKinematics:
     n = walk["time"].size
     return WalkingKinematics(
+        rows=np.arange(n),
         time_s=walk["time"],
         zmp_m=np.zeros((n, 2)),
         desired_zmp_m=np.zeros((n, 2)),
         vertical_n=walk["vertical"],
         tilt_rad=walk["tilt"],
+        com_m=np.zeros((n, 3)),
         sole_centre_m=np.zeros((n, 2, 3)),
         sole_yaw_rad=np.zeros((n, 2)),
         margin_m=np.full(n, 0.05),  # the ZMP well inside the support polygon throughout
