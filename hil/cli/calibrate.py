@@ -25,9 +25,14 @@ from hil.cli.monitor import read_only_bus
 from hil.config import Config, ConfigError
 from hil.loop import StopFlag
 
+# --seconds: the averaging window, at most 10 minutes (120,000 readings at 200 Hz, held in
+# memory; the offsets are measured at rest, which a longer window does not make truer)
+MAX_SECONDS = 600.0
+
 
 def parse_poses(texts: list[str], config: Config) -> dict[str, float]:
-    """--pose RAD (every joint) or --pose NAME=RAD, repeatable."""
+    """--pose RAD (every joint) or --pose NAME=RAD, repeatable; each within its joint's
+    [min_angle_rad, max_angle_rad] (the robot is held there)."""
     poses: dict[str, float] = {}
     for text in texts:
         name, sep, value = text.rpartition("=")
@@ -40,6 +45,12 @@ def parse_poses(texts: list[str], config: Config) -> dict[str, float]:
         for joint in [name] if sep else config.joint_names:
             if joint not in config.joint_names:
                 raise ConfigError(f"--pose {text!r}: no joint {joint!r} ({config.joint_names})")
+            section = config.joints[config.joint_names.index(joint)]
+            if not section.min_angle_rad <= angle <= section.max_angle_rad:
+                raise ConfigError(
+                    f"--pose {text!r}: {angle:g} rad is outside joint {joint!r}'s range "
+                    f"[{section.min_angle_rad:g}, {section.max_angle_rad:g}] rad"
+                )
             poses[joint] = angle
     return poses
 
@@ -146,8 +157,10 @@ def _check_writable(path: Path) -> None:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    if not (math.isfinite(args.seconds) and args.seconds > 0):
-        raise ConfigError(f"--seconds: must be a finite time > 0 s, got {args.seconds}")
+    if not (math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SECONDS):
+        raise ConfigError(
+            f"--seconds: must be a time in (0, {MAX_SECONDS:g}] s, got {args.seconds}"
+        )
     if args.write and args.config is None:
         raise ConfigError("--write updates the configuration file: give it with --config FILE")
     if args.write:
