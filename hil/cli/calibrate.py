@@ -102,9 +102,12 @@ def _write(path: Path, calibration: Calibration) -> Path:
 
 def write_keeping_backup(path: Path, text: str) -> Path:
     """`path` replaced by `text` in one rename, the old file kept as PATH.bak (PATH.bak-2, ...
-    when one exists); returns the backup's path. The new text goes to a temporary file beside
-    it first (written and synced); if anything fails, the temporary and the new backup are
-    removed and the error raised: nothing is left behind, the file is as it was."""
+    when one exists); returns the backup's path. A symbolic link is followed: the file it names
+    is the one replaced (and backed up beside it), the link stays. The new text goes to a
+    temporary file beside it first (written and synced); if anything fails, the temporary and
+    the new backup are removed and the error raised: nothing is left behind, the file is as it
+    was."""
+    path = Path(os.path.realpath(path))
     old = path.read_bytes()
     backup: Path | None = None
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -148,8 +151,9 @@ def _check_writable(path: Path) -> None:
     backup go beside it), judged before anything is read."""
     if not path.is_file():
         raise ConfigError(f"--write {path}: no such file")
+    target = Path(os.path.realpath(path))  # a link's file is the one written
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".check", dir=path.parent)
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".check", dir=target.parent)
         os.close(fd)
         os.unlink(name)
     except OSError as exc:
@@ -204,5 +208,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return ExitCode.FAILED
-        print(f"hil calibrate: updated {args.config} (the old file: {backup})", file=sys.stderr)
+        target = Path(os.path.realpath(args.config))
+        written = f"{args.config}" + (f" (-> {target})" if target != args.config.absolute() else "")
+        print(f"hil calibrate: updated {written} (the old file: {backup})", file=sys.stderr)
     return ExitCode.OK
