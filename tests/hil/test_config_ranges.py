@@ -94,9 +94,7 @@ NUMBERS = [(key, kind, allowed) for key, kind, allowed in figures(ConfigFile)]
 
 
 def test_every_number_has_a_range_or_a_named_judge() -> None:
-    unbounded = {
-        key for key, _, allowed in NUMBERS if allowed.low is None or allowed.high is None
-    }
+    unbounded = {key for key, _, allowed in NUMBERS if allowed.low is None or allowed.high is None}
     assert unbounded == set(JUDGED_ELSEWHERE), sorted(unbounded ^ set(JUDGED_ELSEWHERE))
 
 
@@ -170,8 +168,10 @@ def test_every_emulated_figure_has_a_range_that_holds_its_default(part: str) -> 
             assert name in ranges, f"[emulator] {part}.{name} has no range"
             low, high, _ = ranges[name]
             value = getattr(default, name)
-            values = value.values() if isinstance(value, dict) else (
-                value if isinstance(value, tuple) else (value,)
+            values = (
+                value.values()
+                if isinstance(value, dict)
+                else (value if isinstance(value, tuple) else (value,))
             )
             assert all(low <= float(v) <= high for v in values), (name, value)
     if part == "plant":
