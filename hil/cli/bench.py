@@ -69,7 +69,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
         ("--runs", args.runs, 1, MAX_RUNS),
     ):
         if value is not None and not low <= value <= high:
-            print(f"hil bench: {option} must be in {low}..{high}, got {value}", file=sys.stderr)
+            print(
+                f"hil bench: {option} must be >= {low} and <= {high}, got {value}",
+                file=sys.stderr,
+            )
             return ExitCode.USAGE
     config = checked_config(args.config, args.robot)
 
