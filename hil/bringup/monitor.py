@@ -33,6 +33,10 @@ import numpy as np
 from drivers.joint_bus import ActuatorFault, Diagnostic, JointBus, JointSample
 from hil.config import Config
 
+# The longest a wait between samples sleeps at a time: a stop (Ctrl-C, SIGTERM) or the end of
+# --duration is seen within this, however slow the rate.
+MAX_SLEEP_S = 0.05
+
 
 class Flag(enum.StrEnum):
     NO_REPLY = "no_reply"
@@ -158,7 +162,8 @@ def monitor(
     `stopped()`), handing each assessed sample to `on_sample`. Returns the number of samples.
 
     Reads are paced on a fixed grid; a read that takes longer than a period is followed at
-    once by the next (no catching up in bursts).
+    once by the next (no catching up in bursts). The wait for the next read ends early at
+    `duration_s` or when `stopped()`: it sleeps at most MAX_SLEEP_S at a time.
     """
     limits = np.asarray(bus.current_limits_a(), dtype=float)
     period = 1.0 / rate_hz
@@ -179,9 +184,25 @@ def monitor(
             told_torque = True
         on_sample(sample)
         count += 1
-        wait = grid + count * period - clock()
-        if wait > 0:
-            sleep(wait)
-        else:
+        due = grid + count * period
+        if due <= clock():
             grid = clock() - count * period  # late: re-anchor the grid, do not burst
+            continue
+        end = due if duration_s is None else min(due, start + duration_s)
+        wait_until(end, stopped, clock, sleep)
     return count
+
+
+def wait_until(
+    end: float,
+    stopped: Callable[[], bool],
+    clock: Callable[[], float] = time.monotonic,
+    sleep: Callable[[float], None] = time.sleep,
+) -> None:
+    """Sleep until `clock()` reaches `end` or `stopped()`, in slices of at most MAX_SLEEP_S (a
+    signal's handler runs in between; a whole long sleep would be resumed after it, PEP 475)."""
+    while not stopped():
+        left = end - clock()
+        if left <= 0:
+            return
+        sleep(min(left, MAX_SLEEP_S))

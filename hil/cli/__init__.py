@@ -19,23 +19,58 @@
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
 arguments or bad configuration (nothing was sent to any device), 3 torque could not be turned
 off at the end of a run (the actuators may still hold with torque on).
+
+A Ctrl-C at any moment, from the first import on, ends with status 1 and one line
+(`hil: interrupted`), never a traceback: this module imports nothing heavy until `main` runs,
+inside its guard.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
-import traceback
+from typing import TYPE_CHECKING
 
 from hil.cli.exit_codes import ExitCode
-from hil.cli.parser import build_parser
-from hil.config import ConfigError, default_config_text
+
+if TYPE_CHECKING:
+    from hil.cli.parser import build_parser
 
 __all__ = ["ExitCode", "build_parser", "main"]
 
 
+def __getattr__(name: str) -> object:
+    if name == "build_parser":  # imported on first use: the parser imports the whole product
+        from hil.cli.parser import build_parser
+
+        return build_parser
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The `hil` command; argv None: this process's own arguments (the console script)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # during the imports, the parsing, or a command's own clean-up
+        return _interrupted(process_ends=argv is None)
+
+
+def _interrupted(process_ends: bool) -> int:
+    # A second Ctrl-C while this is said, or while the interpreter ends, would print a
+    # traceback: ignored from here when this process ends now (not when called from Python).
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    print("hil: interrupted", file=sys.stderr)
+    if not process_ends:
+        signal.signal(signal.SIGINT, previous)
+    return ExitCode.FAILED
+
+
+def _main(argv: list[str] | None) -> int:
+    from hil.cli.parser import build_parser
+    from hil.config import ConfigError
+
     args = build_parser().parse_args(argv)
     try:
         return int(_dispatch(args))
@@ -43,10 +78,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hil: configuration error: {exc}", file=sys.stderr)
         return ExitCode.USAGE
     except KeyboardInterrupt:
-        print("hil: interrupted", file=sys.stderr)
-        return ExitCode.FAILED
+        raise
     except Exception as exc:  # noqa: BLE001 - no traceback for the user; HIL_DEBUG=1 shows it
         if os.environ.get("HIL_DEBUG"):
+            import traceback
+
             traceback.print_exc()
         print(
             f"hil {args.command}: {type(exc).__name__}: {exc} (set HIL_DEBUG=1 for the traceback)",
@@ -57,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "config":
+        from hil.config import default_config_text
+
         sys.stdout.write(default_config_text(args.robot or "testbed"))
         return ExitCode.OK
     if args.command == "model":

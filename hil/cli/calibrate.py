@@ -25,9 +25,14 @@ from hil.cli.monitor import read_only_bus
 from hil.config import Config, ConfigError
 from hil.loop import StopFlag
 
+# --seconds: the averaging window, at most 10 minutes (120,000 readings at 200 Hz, held in
+# memory; the offsets are measured at rest, which a longer window does not make truer)
+MAX_SECONDS = 600.0
+
 
 def parse_poses(texts: list[str], config: Config) -> dict[str, float]:
-    """--pose RAD (every joint) or --pose NAME=RAD, repeatable."""
+    """--pose RAD (every joint) or --pose NAME=RAD, repeatable; each within its joint's
+    [min_angle_rad, max_angle_rad] (the robot is held there)."""
     poses: dict[str, float] = {}
     for text in texts:
         name, sep, value = text.rpartition("=")
@@ -40,6 +45,12 @@ def parse_poses(texts: list[str], config: Config) -> dict[str, float]:
         for joint in [name] if sep else config.joint_names:
             if joint not in config.joint_names:
                 raise ConfigError(f"--pose {text!r}: no joint {joint!r} ({config.joint_names})")
+            section = config.joints[config.joint_names.index(joint)]
+            if not section.min_angle_rad <= angle <= section.max_angle_rad:
+                raise ConfigError(
+                    f"--pose {text!r}: {angle:g} rad is outside joint {joint!r}'s range "
+                    f"[{section.min_angle_rad:g}, {section.max_angle_rad:g}] rad"
+                )
             poses[joint] = angle
     return poses
 
@@ -91,9 +102,12 @@ def _write(path: Path, calibration: Calibration) -> Path:
 
 def write_keeping_backup(path: Path, text: str) -> Path:
     """`path` replaced by `text` in one rename, the old file kept as PATH.bak (PATH.bak-2, ...
-    when one exists); returns the backup's path. The new text goes to a temporary file beside
-    it first (written and synced); if anything fails, the temporary and the new backup are
-    removed and the error raised: nothing is left behind, the file is as it was."""
+    when one exists); returns the backup's path. A symbolic link is followed: the file it names
+    is the one replaced (and backed up beside it), the link stays. The new text goes to a
+    temporary file beside it first (written and synced); if anything fails, the temporary and
+    the new backup are removed and the error raised: nothing is left behind, the file is as it
+    was."""
+    path = Path(os.path.realpath(path))
     old = path.read_bytes()
     backup: Path | None = None
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -137,8 +151,9 @@ def _check_writable(path: Path) -> None:
     backup go beside it), judged before anything is read."""
     if not path.is_file():
         raise ConfigError(f"--write {path}: no such file")
+    target = Path(os.path.realpath(path))  # a link's file is the one written
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".check", dir=path.parent)
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".check", dir=target.parent)
         os.close(fd)
         os.unlink(name)
     except OSError as exc:
@@ -146,8 +161,10 @@ def _check_writable(path: Path) -> None:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    if not (math.isfinite(args.seconds) and args.seconds > 0):
-        raise ConfigError(f"--seconds: must be a finite time > 0 s, got {args.seconds}")
+    if not (math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SECONDS):
+        raise ConfigError(
+            f"--seconds: must be a time in (0, {MAX_SECONDS:g}] s, got {args.seconds}"
+        )
     if args.write and args.config is None:
         raise ConfigError("--write updates the configuration file: give it with --config FILE")
     if args.write:
@@ -191,5 +208,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return ExitCode.FAILED
-        print(f"hil calibrate: updated {args.config} (the old file: {backup})", file=sys.stderr)
+        target = Path(os.path.realpath(args.config))
+        written = f"{args.config}" + (f" (-> {target})" if target != args.config.absolute() else "")
+        print(f"hil calibrate: updated {written} (the old file: {backup})", file=sys.stderr)
     return ExitCode.OK

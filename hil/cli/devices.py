@@ -16,10 +16,16 @@ SCAN_BAUDRATES = (3_000_000, 4_000_000, 1_000_000, 2_000_000, 57_600, 115_200, 9
 
 def cmd_scan(args: argparse.Namespace) -> int:
     from drivers.dynamixel import ScanProgress, scan
+    from drivers.dynamixel.port import sdk_accepts_baudrate
     from drivers.joint_bus import BusError
 
-    if args.baudrate is not None and args.baudrate <= 0:
-        raise ConfigError(f"--baudrate: must be a baud rate > 0 bit/s, got {args.baudrate}")
+    if args.baudrate is not None and not (
+        args.baudrate > 0 and sdk_accepts_baudrate(args.baudrate)
+    ):
+        raise ConfigError(
+            f"--baudrate: {args.baudrate} bit/s is not a rate dynamixel-sdk can set (e.g. "
+            f"{', '.join(str(b) for b in sorted(SCAN_BAUDRATES))})"
+        )
     bauds = (args.baudrate,) if args.baudrate else SCAN_BAUDRATES
     found: list[dict] = []
     # A bar over the baud rates (a one-by-one PING of every ID moves it within one), on a

@@ -18,7 +18,9 @@ top, every joint's under "joints"). Exit 2 for a directory that is not an identi
 from __future__ import annotations
 
 import argparse
+import hashlib
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -102,11 +104,41 @@ def _number(value: float) -> str:
 
 
 def _figure_path(args: argparse.Namespace, first: Path, joint: str, several: bool) -> Path:
+    """--figure FILE (FILE-JOINT.png per joint with several), --figure DIR (DIR's
+    identification.png: a directory gets a file inside it), else the first log's."""
     suffix = f"-{joint}" if several and joint else ""
-    if args.figure is None:
-        return first / f"identification{suffix}.png"
-    figure = Path(args.figure)
+    figure = None if args.figure is None else Path(args.figure)
+    if figure is not None and str(args.figure).endswith(os.sep):
+        figure.mkdir(parents=True, exist_ok=True)  # DIR/: a directory, made if need be
+    if figure is None or figure.is_dir():
+        return (first if figure is None else figure) / f"identification{suffix}.png"
     return figure.with_name(f"{figure.stem}{suffix}{figure.suffix or '.png'}")
+
+
+def _duplicates(paths: list[Path]) -> list[str]:
+    """Runs given more than once (the same directory by any path, or a copy of one: the same
+    log): each would be counted as an independent run and narrow the 95 % intervals."""
+    seen: dict[object, Path] = {}
+    repeated = []
+    for path in paths:
+        keys: list[object] = [os.path.realpath(path)]
+        log = path / "log.csv"
+        if log.is_file():
+            keys.append(_digest(log))
+        first = next((seen[key] for key in keys if key in seen), None)
+        if first is not None:
+            repeated.append(f"{path} (the same run as {first})")
+        for key in keys:
+            seen.setdefault(key, path)
+    return repeated
+
+
+def _digest(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def _fit_all(
@@ -157,6 +189,14 @@ def _print_results(
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
+    repeated = _duplicates([Path(p) for p in args.logs])
+    if repeated:
+        print(
+            f"hil identify: {'; '.join(repeated)}: each run counts once (a run given twice "
+            "would narrow the intervals as if it were two)",
+            file=sys.stderr,
+        )
+        return ExitCode.USAGE
     try:
         runs = [read_identification_run(path) for path in args.logs]
     except NotAnIdentificationRun as exc:

@@ -18,6 +18,9 @@ from hil.loop import StopFlag
 from hil.output.strict_json import dumps
 from hil.wiring import Connection, make_bus
 
+# --rate: from a sample every 10 s to the loop's 200 Hz (a slower rate is no live table, and
+# 1/rate overflowed a sleep at 1e-300)
+MIN_RATE_HZ = 0.1
 MAX_RATE_HZ = 200.0
 
 _COLUMNS = (
@@ -109,8 +112,10 @@ def read_only_bus(args: argparse.Namespace, config: Config) -> Iterator[JointBus
 
 
 def cmd_monitor(args: argparse.Namespace) -> int:
-    if not (math.isfinite(args.rate) and 0 < args.rate <= MAX_RATE_HZ):
-        raise ConfigError(f"--rate: must be in (0, {MAX_RATE_HZ:g}] Hz, got {args.rate}")
+    if not (math.isfinite(args.rate) and MIN_RATE_HZ <= args.rate <= MAX_RATE_HZ):
+        raise ConfigError(
+            f"--rate: must be in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {args.rate}"
+        )
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise ConfigError(f"--duration: must be a finite time > 0 s, got {args.duration}")
     config = checked_config(args.config)

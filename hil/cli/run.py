@@ -12,6 +12,7 @@ import tomllib
 from pathlib import Path
 
 from hil.cli.common import checked_config, connection_overrides, load_attach, parse_injections
+from hil.cli.design import check_designs, comparison_runs
 from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError, robot_of
 from hil.controllers import ControllerLoadError
@@ -257,7 +258,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     _check_combinations(args, embedded, faults)
     _check_timeline(args, faults, overruns)
     if args.experiment is not None:
-        _choice(args, config, get_experiment(args.experiment))
+        experiment = get_experiment(args.experiment)
+        check_designs(config, [(experiment, _choice(args, config, experiment))], args.duration)
+    else:
+        check_designs(config, comparison_runs(config, named))
     _check_out(args, config)
     setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
     sinks = _live(args)

@@ -36,8 +36,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.spec is None:
         print("hil sweep: name a spec (a TOML file, or one of `hil sweep --list`)", file=sys.stderr)
         return ExitCode.USAGE
-    if args.workers is not None and args.workers < 1:
-        print(f"hil sweep: --workers must be >= 1, got {args.workers}", file=sys.stderr)
+    from hil.session.plan import usable_cpus
+
+    cpus = usable_cpus()
+    if args.workers is not None and not 1 <= args.workers <= cpus:
+        # the local Ray's CPUs are this machine's: more would run that many runs on too few
+        # cores, each slower than its lock-step allowance
+        print(
+            f"hil sweep: --workers must be from 1 to the {cpus} CPUs this process may use, "
+            f"got {args.workers}",
+            file=sys.stderr,
+        )
         return ExitCode.USAGE
     if args.max_runs is not None and args.max_runs < 0:
         print(f"hil sweep: --max-runs must be >= 0, got {args.max_runs}", file=sys.stderr)

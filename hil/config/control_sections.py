@@ -1,6 +1,7 @@
 """The configuration's controller side: the robot model the controller uses (`[model]`), the
 controller (`[controller]`) and the walking scheme around the walks' pattern (`[walking]`).
-Declared like the rest of the file (schema.py: strict types, finite numbers, no unknown keys)."""
+Declared like the rest of the file (schema.py: strict types, finite numbers within their physical
+ranges (hil.config.figures), no unknown keys)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,20 @@ from controller import (
     ServoModel,
 )
 from controller.walking import CenterOfMassMeasurement
+from hil.config.figures import (
+    Damping,
+    GravityMoment,
+    IntegralTime,
+    Kdist,
+    LinkInertia,
+    LqrWeight,
+    LqrWeightOrZero,
+    RotorInertia,
+    ServoGain,
+    Stiffness,
+    VelocityGain,
+    ViscousFriction,
+)
 from hil.config.section import Section
 from hil.vocabulary import ControllerKind
 
@@ -28,14 +43,14 @@ class JointModelSection(Section):
     """Per-joint overrides of the model's gear and servo figures (`[model.joint.NAME]`; the
     first table of a `hil identify` fragment)."""
 
-    stiffness_nm_per_rad: float | None = Field(None, gt=0)
-    damping_nms_per_rad: float | None = Field(None, ge=0)
-    servo_gain_per_s: float | None = Field(None, gt=0)
-    position_gain_per_s: float | None = Field(None, gt=0)
-    velocity_gain_nms_per_rad: float | None = Field(None, gt=0)
-    velocity_integral_time_s: float | None = Field(None, gt=0)
-    rotor_inertia_kg_m2: float | None = Field(None, gt=0)
-    motor_viscous_friction_nms_per_rad: float | None = Field(None, ge=0)
+    stiffness_nm_per_rad: Stiffness | None = None
+    damping_nms_per_rad: Damping | None = None
+    servo_gain_per_s: ServoGain | None = None
+    position_gain_per_s: ServoGain | None = None
+    velocity_gain_nms_per_rad: VelocityGain | None = None
+    velocity_integral_time_s: IntegralTime | None = None
+    rotor_inertia_kg_m2: RotorInertia | None = None
+    motor_viscous_friction_nms_per_rad: ViscousFriction | None = None
 
 
 class ModelSection(Section):
@@ -69,25 +84,29 @@ class ModelSection(Section):
     (sim_backend/servo.py: kv = 2 pi 50 Hz x 0.25 kg m^2, Ti from the stock I/P gain ratio):
     its static stiffness Kpp kv = 785 N m/rad is what the gravity compensator's "joint"
     compliance adds to the gear's (`[controller] gc_compliance`; `hil model` prints both).
+
+    Each figure's range, and why it ends where it does, is in hil/config/figures.py.
     """
 
     robot: Literal["single_link", "dyros-jet"] = "single_link"
     description: str | None = None
     sm_coupling: Coupling = Field(Coupling.DIAGONAL, strict=False)
-    gain_reschedule_period_s: float = Field(0.1, gt=0)  # the lab's background thread: 100 ms
+    # the lab's background thread: 100 ms; from a tick at 200 Hz to 1 s (a step's time: a gain
+    # held longer was designed for another posture)
+    gain_reschedule_period_s: float = Field(0.1, ge=0.005, le=1.0)
     sm_contact: Literal["both-feet", "support-foot"] = "both-feet"
     sm_standing_foot: Literal["left", "right"] = "left"
     servo_model: ServoModel = Field(ServoModel.FIRST_ORDER, strict=False)
-    stiffness_nm_per_rad: float = Field(2000.0, gt=0)
-    damping_nms_per_rad: float = Field(100.0, ge=0)
-    servo_gain_per_s: float = Field(10.0, gt=0)
-    position_gain_per_s: float | None = Field(None, gt=0)  # None: servo_gain_per_s
-    velocity_gain_nms_per_rad: float = Field(78.5, gt=0)
-    velocity_integral_time_s: float = Field(15.0, gt=0)
-    rotor_inertia_kg_m2: float = Field(0.25, gt=0)  # the H54's rotor, reflected to the output
-    motor_viscous_friction_nms_per_rad: float = Field(1.14, ge=0)  # its gearbox, viscous part
-    link_inertia_kg_m2: float = Field(0.376, gt=0)
-    gravity_moment_kg_m: float = Field(0.63, ge=0)
+    stiffness_nm_per_rad: Stiffness = 2000.0
+    damping_nms_per_rad: Damping = 100.0
+    servo_gain_per_s: ServoGain = 10.0
+    position_gain_per_s: ServoGain | None = None  # None: servo_gain_per_s
+    velocity_gain_nms_per_rad: VelocityGain = 78.5
+    velocity_integral_time_s: IntegralTime = 15.0
+    rotor_inertia_kg_m2: RotorInertia = 0.25  # the H54's rotor, reflected to the output
+    motor_viscous_friction_nms_per_rad: ViscousFriction = 1.14  # its gearbox, viscous part
+    link_inertia_kg_m2: LinkInertia = 0.376
+    gravity_moment_kg_m: GravityMoment = 0.63
     joint: dict[str, JointModelSection] = Field(default_factory=dict)
 
     def joint_figure(self, joint: str, key: str) -> float:
@@ -116,6 +135,7 @@ class ControllerSection(Section):
     static stiffness Kpp kv (ours; [model] servo_model = "cascade" only): the paper's nominal
     (4) has no static lag, so on a servo with one the DOB reads the compensated weight's lag
     as a disturbance and yields to it (controller/controllers.py, docs/walking.md).
+    The figures' ranges: hil/config/figures.py (the gain, the LQR's weights) and beside each key.
     """
 
     # A registry name (the paper's "pid", "gc", "gc+lqr", "gc+lqr+dob", or an installed
@@ -126,15 +146,19 @@ class ControllerSection(Section):
     params: dict[str, Any] = Field(default_factory=dict)
     gc_compliance: GcCompliance = Field(GcCompliance.JOINT, strict=False)
     gc_load: GcLoad = Field(GcLoad.WEIGHT, strict=False)
-    kdist: float = Field(1.0, ge=0)
-    kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0)  # a Kdist change ramps this long
-    q_error: float = Field(10.0, gt=0)  # Kim et al.: Q = 10 I, R = I
-    q_state: float = Field(1.0, ge=0)
-    r_input: float = Field(1.0, gt=0)
-    dob_cutoff_hz: float | None = Field(None, gt=0)  # the Q filter by its cut-off, or ...
-    dob_filter_pole: float | None = Field(None, ge=0, lt=1)  # ... by its pole; neither: 0.7
+    kdist: Kdist = 1.0
+    # a Kdist change ramps this long: at most 10 s, longer than any experiment's contact phase
+    kdist_ramp_s: float = Field(LAB_KDIST_RAMP_S, ge=0, le=10.0)
+    q_error: LqrWeight = 10.0  # Kim et al.: Q = 10 I, R = I
+    q_state: LqrWeightOrZero = 1.0
+    r_input: LqrWeight = 1.0
+    # The Q filter by its cut-off (0.1 Hz up to the Nyquist frequency, checked with [loop]
+    # rate_hz: a slower filter takes seconds to estimate anything, a 1.6 s time constant), or
+    # by its pole (at most 0.997, a 0.1 Hz cut-off at 200 Hz); neither: 0.7.
+    dob_cutoff_hz: float | None = Field(None, ge=0.1)
+    dob_filter_pole: float | None = Field(None, ge=0, le=0.997)
     composition: CompositionReading = Field(CompositionReading.ACCUMULATED, strict=False)
-    dob_integral_time_s: float | None = Field(None, gt=0)  # "accumulated-integral" needs it
+    dob_integral_time_s: IntegralTime | None = None  # "accumulated-integral" needs it
     discretization: LqrDesign = Field(LqrDesign.EULER, strict=False)  # the LQR design
     kdist_reference: KdistReference = Field(KdistReference.PER_TICK, strict=False)
     reference_feedforward: bool = False  # the LQR's uc moves with the reference's increments

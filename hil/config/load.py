@@ -8,13 +8,17 @@ validation, so a value is refused the same way wherever it comes from. An error 
 
 from __future__ import annotations
 
+import os
+import stat
 import tomllib
+import xml.etree.ElementTree as ElementTree
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from pydantic import PrivateAttr, ValidationError
 
+from hil.config.ranges import figure_range
 from hil.config.schema import ConfigFile
 
 DEFAULT_CONFIG_NAME = "testbed.toml"
@@ -93,13 +97,40 @@ def load_config(path: str | Path | None = None, *, robot: str = "testbed") -> Co
         name = BUILT_IN_CONFIGS.get(robot, DEFAULT_CONFIG_NAME)
         return parse_config(default_config_text(robot), source=f"<built-in {name}>")
     path = Path(path)
+    return parse_config(read_text_file(path, "configuration file"), source=str(path))
+
+
+# A configuration file is a few kB (the humanoid's, every key commented: 17 kB); more than this
+# is no configuration (`/dev/zero` would be read until memory ran out).
+MAX_CONFIG_BYTES = 1 << 20
+
+
+def read_text_file(path: Path, what: str, max_bytes: int = MAX_CONFIG_BYTES) -> str:
+    """A regular text file of at most `max_bytes`, read without blocking on what is not one
+    (a FIFO would wait for a writer for ever, a device never ends): ConfigError otherwise."""
     try:
-        text = path.read_text()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
     except OSError as exc:
-        raise ConfigError(f"cannot read configuration file {path}: {exc.strerror}") from exc
+        raise ConfigError(f"cannot read {what} {path}: {exc.strerror}") from exc
+    with os.fdopen(fd, "rb") as f:
+        info = os.fstat(f.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise ConfigError(f"{path}: not a regular file (a {what} is a file of text)")
+        if info.st_size > max_bytes:
+            raise ConfigError(
+                f"{path}: {info.st_size} bytes, more than a {what} holds "
+                f"(at most {max_bytes} bytes)"
+            )
+        try:
+            data = f.read(max_bytes + 1)
+        except OSError as exc:
+            raise ConfigError(f"cannot read {what} {path}: {exc.strerror}") from exc
+    if len(data) > max_bytes:  # it grew while it was read
+        raise ConfigError(f"{path}: more than a {what} holds (at most {max_bytes} bytes)")
+    try:
+        return data.decode()
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not a text file: {exc}") from exc
-    return parse_config(text, source=str(path))
 
 
 def config_from_record(record: dict[str, Any]) -> Config:
@@ -152,6 +183,9 @@ def _refuse_moved_keys(raw: dict[str, Any], source: str) -> None:
                 )
 
 
+_RANGE_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
 def _describe(
     exc: ValidationError, raw: dict[str, Any], source: str, option: str | None = None
 ) -> str:
@@ -161,6 +195,10 @@ def _describe(
         message = error["msg"]
         if message.startswith("Value error, "):
             message = message[len("Value error, ") :]
+        if error["type"] in _RANGE_ERRORS:
+            allowed = figure_range(ConfigFile, tuple(error["loc"]))
+            if allowed is not None:
+                message = f"{message}: its physical range is {allowed}"
         shown = ""
         if error["type"] not in ("missing", "extra_forbidden") and "input" in error:
             value = error["input"]
@@ -194,18 +232,37 @@ def robot_description_text(config: Config) -> str:
     """The robot's URDF ([model] description): a path, or the name of one shipped with the
     package (hil/data/robots/NAME or NAME.urdf)."""
     name = config.model.description
+    where = f"{config.source} [model] description"
     if name is None:
-        raise ConfigError(f"{config.source} [model] description: missing (a URDF)")
+        raise ConfigError(f"{where}: missing (a URDF)")
     path = Path(name).expanduser()
-    if path.is_file():
-        return path.read_text()
+    if path.exists():
+        return _urdf(read_text_file(path, "URDF", MAX_URDF_BYTES), f"{where}: {path}")
     shipped = resources.files("hil").joinpath("data", "robots")
     for candidate in (name, f"{name}.urdf"):
         resource = shipped.joinpath(candidate)
         if resource.is_file():
-            return resource.read_text()
+            return _urdf(resource.read_text(), f"{where}: {name}")
     known = sorted(p.name for p in shipped.iterdir() if p.name.endswith(".urdf"))
     raise ConfigError(
         f"{config.source} [model] description: {name!r} is neither a file nor one of the "
         f"robots shipped with hil ({known})"
     )
+
+
+# DYROS-JET's URDF is 60 kB; a robot description of more than this is no URDF.
+MAX_URDF_BYTES = 16 << 20
+
+
+def _urdf(text: str, where: str) -> str:
+    """`text` if it is a URDF (XML whose root is <robot>): said here, naming the file, rather
+    than by the URDF parser's own message on the terminal."""
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise ConfigError(f"{where} is not a URDF: not XML ({exc})") from None
+    if root.tag != "robot":
+        raise ConfigError(
+            f"{where} is not a URDF: its root element is <{root.tag}>, a URDF's is <robot>"
+        )
+    return text

@@ -6,7 +6,10 @@ controller uses (`[model]`), the controller, the safety supervisor and the emula
 facts (ID ranges, baud rates, current limits, position ranges) are not repeated here: the
 drivers' own configurations check them when `hil` builds the buses (`hil.wiring`).
 
-Every number must be finite; bools are not numbers; unknown keys are refused.
+Every number must be finite and within its physical range (`hil.config.figures` and the
+comment beside each key say why it ends where it does); bools are not numbers; unknown keys are
+refused. A watch of [safety] is switched off only by its documented switch, never by a huge
+number.
 """
 
 from __future__ import annotations
@@ -26,18 +29,27 @@ from hil.config.control_sections import (
     ModelSection,
     WalkingSection,
 )
+from hil.config.emulator_overrides import check_overrides
+from hil.config.figures import Kdist, WatchTicks, WatchWindowTicks
 from hil.config.section import Section
 from hil.vocabulary import EmulatorClock, Reaction, SafetyCause
 
 Direction = Literal[1, -1]
+ForceOffset = Annotated[float, Field(ge=-1.0e4, le=1.0e4)]
+TorqueOffset = Annotated[float, Field(ge=-1.0e3, le=1.0e3)]
 # The choices the controller package defines (one definition each, in controller/).
 CompositionName = Annotated[str, Field(json_schema_extra={"enum": list(COMPOSITION_READINGS)})]
 
 
 class LoopSection(Section):
-    rate_hz: float = Field(200.0, gt=0, le=2000)  # Kim et al.: "The control frequency is 200 Hz"
+    # Kim et al.: "The control frequency is 200 Hz". From 10 Hz (slower, the loop no longer
+    # samples the testbed's gear mode, sqrt(K / I) = 12 Hz) to 2 kHz (the RS-485 cycle alone
+    # takes ~0.5 ms: docs/realtime.md).
+    rate_hz: float = Field(200.0, ge=10, le=2000)
     stop_cycles: int = Field(5, ge=0, le=1000)  # hold commands at start-up and before shutdown
-    bus_read_timeout_ms: float = Field(2.0, gt=0, le=1000)  # a tick's wait for the TPDOs
+    # a tick's wait for the TPDOs: at least one CAN frame's time (~0.1 ms at 1 Mbit/s), and
+    # below the loop's period (checked with rate_hz below): the wait is part of the tick
+    bus_read_timeout_ms: float = Field(2.0, ge=0.1, le=100)
     # the wall clock sleeps to this long before a tick, then spins; a period or more: it never
     # sleeps (a core of its own busy; fewer late ticks on a virtual machine: docs/realtime.md)
     spin_before_tick_ms: float = Field(0.3, ge=0, le=1000)
@@ -56,10 +68,12 @@ class DynamixelSection(Section):
 
     name: str = Field("dynamixel", min_length=1)
     port: str = ""
-    baudrate: int = Field(3_000_000, gt=0)
+    baudrate: int = Field(3_000_000, gt=0)  # one the model's Baud Rate item offers (drivers)
     model: str = "H54-200-S500-R"
-    latency_timer_ms: float = Field(1.0, gt=0, le=1000)  # ROBOTIS advise 1 ms on FTDI adapters
-    return_delay_time_us: int = Field(0, ge=0)  # ROBOTIS advise 0 for fast sync reads
+    # ROBOTIS advise 1 ms on FTDI adapters; the FTDI chip's latency timer holds 1..255 ms
+    latency_timer_ms: float = Field(1.0, gt=0, le=255)
+    # ROBOTIS advise 0 for fast sync reads; the Return Delay Time item holds 0..254 x 2 us
+    return_delay_time_us: int = Field(0, ge=0, le=508)
 
 
 class CanSection(Section):
@@ -68,7 +82,8 @@ class CanSection(Section):
     name: str = Field("can", min_length=1)
     interface: str = Field("socketcan", min_length=1)
     channel: str = Field("can0", min_length=1)
-    bitrate: int = Field(1_000_000, gt=0)  # bit/s (python-can's socketcan ignores it)
+    # bit/s (python-can's socketcan ignores it): classical CAN's 10 kbit/s .. 1 Mbit/s (CiA 301)
+    bitrate: int = Field(1_000_000, ge=10_000, le=1_000_000)
     options: dict[str, Any] = Field(default_factory=dict)  # extra can.Bus(...) keyword args
 
     def bus_kwargs(self) -> dict[str, Any]:
@@ -83,7 +98,9 @@ class ForceSensorSection(Section):
     node_id: int = Field(0, ge=0, le=127)  # 0: no force sensor
     can: str | None = None  # the channel it is on (None: the only one)
     direction: Direction = 1  # sign from its reading to a force pressing the link back
-    offset_n: float = 0.0  # its reading with nothing touching (subtracted)
+    # its reading with nothing touching (subtracted): within +-10 kN, more than any load cell
+    # an H54's 48 N m current limit can load (70 N at the testbed's 0.7 m lever)
+    offset_n: float = Field(0.0, ge=-1.0e4, le=1.0e4)
 
 
 class ForceTorqueSensorSection(Section):
@@ -93,8 +110,10 @@ class ForceTorqueSensorSection(Section):
     name: str = Field(min_length=1)
     node_id: int = Field(ge=1, le=127)
     can: str | None = None  # the channel it is on (None: the only one)
-    force_offset_n: tuple[float, float, float] = (0.0, 0.0, 0.0)  # readings at zero load
-    torque_offset_nm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # readings at zero load: within +-10 kN and +-1 kN m (a humanoid foot's six-axis sensor is
+    # rated for some kN; DYROS-JET weighs ~500 N)
+    force_offset_n: tuple[ForceOffset, ForceOffset, ForceOffset] = (0.0, 0.0, 0.0)
+    torque_offset_nm: tuple[TorqueOffset, TorqueOffset, TorqueOffset] = (0.0, 0.0, 0.0)
 
 
 class JointSection(Section):
@@ -105,7 +124,13 @@ class JointSection(Section):
     dynamixel: str | None = None  # the chain it is on (None: the only one)
     encoder_node_id: int
     can: str | None = None  # the CAN channel of its encoder (None: the only one)
-    encoder_counts_per_rev: int | None = Field(None, gt=0)  # None: the driver's RLC2IC figure
+    # None: the driver's RLC2IC figure. From 4096 (1.5 mrad a count, half the testbed's static
+    # deflection m g r / K = 3.1 mrad: coarser cannot see the deflection the controller acts on)
+    # to 2**31 (a CiA 406 INTEGER32 position must hold one turn).
+    encoder_counts_per_rev: int | None = Field(None, ge=4096, le=2**31)
+    # The offsets, limits, IDs and current limit are device facts: the drivers judge them when
+    # the configuration is checked (an offset within the encoder's INTEGER32 reach, limits and
+    # motor offset within the H54's position-mode range +-pi, a Torque Limit it holds).
     encoder_offset_rad: float = 0.0
     encoder_direction: Direction = 1
     motor_offset_rad: float = 0.0
@@ -143,28 +168,44 @@ class SafetySection(Section):
         disagree before the zero offsets are called wrong (the start gate refuses the run,
         `hil monitor` flags it). It must hold the gear's static deflection under gravity
         (m g r / K: 3.1 mrad on the paper's testbed) and its friction (~2 mrad).
+
+    Every figure is bounded (the comment beside it says why) so that no huge number switches a
+    watch off; the switches are `current_guard` (the software overload guard) and the reactions.
     """
 
-    max_goal_rate_rad_s: float = Field(2.0, gt=0)
-    max_deflection_rad: float = Field(0.06, gt=0)
-    zero_offset_margin_rad: float = Field(0.01, gt=0)
-    current_guard: bool = True
+    # the goals' rate limit: at most 3.5 rad/s, the H54-200-S500-R's no-load speed (33.1 rpm =
+    # 3.47 rad/s, e-Manual): a limit beyond what the actuator can move limits nothing
+    max_goal_rate_rad_s: float = Field(2.0, gt=0, le=3.5)
+    # at most 0.5 rad: the H54's 44.7 N m continuous torque deflects the softest gear [model]
+    # admits (100 N m/rad) by 0.45 rad; a bound beyond any deflection the joint can have
+    # watches nothing
+    max_deflection_rad: float = Field(0.06, gt=0, le=0.5)
+    zero_offset_margin_rad: float = Field(0.01, gt=0)  # at most max_deflection_rad (below)
+    current_guard: bool = True  # the guard's switch
     current_guard_fraction: float = Field(0.8, gt=0, le=1)
-    current_guard_time_s: float = Field(0.6, gt=0)
-    current_guard_backoff_rad: float = Field(0.05, ge=0)
-    link_stale_ticks: int = Field(4, ge=1)
-    bus_error_ticks: int = Field(3, ge=1)
-    overrun_limit: int = Field(20, ge=0)
-    link_noise_jump_rad: float = Field(1.0e-4, gt=0)
-    link_noise_window_ticks: int = Field(20, ge=2)
+    # at most 1.5 s: the guard must act before the actuator's own protection, which the
+    # emulated H54 trips after 1.5 s near its limit (ROBOTIS publish no figure)
+    current_guard_time_s: float = Field(0.6, gt=0, le=1.5)
+    # at most 0.2 rad: a back-off is a small step away from the load (400 N m at K = 2000)
+    current_guard_backoff_rad: float = Field(0.05, ge=0, le=0.2)
+    link_stale_ticks: WatchTicks = 4
+    bus_error_ticks: WatchTicks = 3
+    # more than this many missed deadlines in overrun_window_s: below the ticks the window
+    # holds (checked with [loop] rate_hz), else it could never be reached
+    overrun_limit: int = Field(20, ge=0, le=20000)
+    # at most 10 mrad: a link alternating by more every tick is an oscillation of the whole
+    # link at the loop's rate; a bound above it finds no noisy encoder
+    link_noise_jump_rad: float = Field(1.0e-4, gt=0, le=0.01)
+    # a second difference needs two ticks to alternate; at most 200 ticks (1 s at 200 Hz)
+    link_noise_window_ticks: int = Field(20, ge=2, le=200)
     link_noise_fraction: float = Field(0.5, gt=0, le=1)
-    overrun_window_s: float = Field(1.0, gt=0)
+    overrun_window_s: float = Field(1.0, gt=0, le=60)  # at most a minute
     # Legal but dangerous: a DOB gain beyond what the paper used and the closed-loop analysis
     # covers (controller/composition.py; tests/controller/test_closed_loop.py), and goals
     # clipped at the position limits on most ticks (the controller is fighting the limits).
-    max_kdist: float = Field(1.0, ge=0)
+    max_kdist: Kdist = 1.0  # at most 10 ([controller] kdist's own bound)
     goal_saturation_fraction: float = Field(0.5, gt=0, le=1)
-    goal_saturation_window_ticks: int = Field(200, ge=1)
+    goal_saturation_window_ticks: WatchWindowTicks = 200
     on_hardware_error: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_torque_lost: Reaction = _reaction(Reaction.TORQUE_OFF)
     on_bus_error: Reaction = _reaction(Reaction.TORQUE_OFF)
@@ -204,11 +245,15 @@ class EmulatorSection(Section):
     """The virtual testbed's physics and behaviour (also checked when driving hardware)."""
 
     clock: EmulatorClock = Field(EmulatorClock.LOCKSTEP, strict=False)
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=2**63 - 1)  # TOML's largest integer: --seed as a file holds it
+    # Overrides of the emulated robot's truth, each figure within its range
+    # (hil/config/emulator_overrides.py); unknown keys are refused by the emulator's own classes.
     plant: dict[str, Any] = Field(default_factory=dict)  # plant parameter overrides
     servo: dict[str, Any] = Field(default_factory=dict)  # servo parameter overrides
     sensor_noise: dict[str, Any] = Field(default_factory=dict)  # CAN sensors' noise overrides
-    reboot_time_s: float = Field(0.5, gt=0)
+    # at most 3 s: the drivers wait 3 s for a rebooted actuator to answer again
+    # (DynamixelChainConfig.reboot_timeout_s); a longer emulated reboot never ends for them
+    reboot_time_s: float = Field(0.5, gt=0, le=3.0)
     # The emulated USB-serial adapter's latency timer in realtime mode (None: the chain's
     # `latency_timer_ms`, as if set so; 16 rehearses an FTDI adapter left at its default).
     usb_latency_timer_ms: float | None = Field(None, ge=0, le=255)
@@ -218,6 +263,12 @@ class EmulatorSection(Section):
     def _finite(cls, value: dict[str, Any]) -> dict[str, Any]:
         _finite_numbers(value, "")
         return value
+
+    @model_validator(mode="after")
+    def _in_range(self) -> EmulatorSection:
+        for part in ("plant", "servo", "sensor_noise"):
+            check_overrides(part, getattr(self, part))
+        return self
 
 
 def _finite_numbers(value: Any, where: str) -> None:
@@ -263,6 +314,26 @@ class ConfigFile(Section):
             raise ValueError(
                 f"[controller] dob_cutoff_hz ({cutoff:g} Hz) must be below the Nyquist frequency "
                 f"of [loop] rate_hz ({self.loop.rate_hz:g} Hz): {nyquist:g} Hz"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _watches_within_the_loop(self) -> ConfigFile:
+        # figures whose range is the loop's own: a wait that outlasts the tick it is part of,
+        # an overrun count the window can never reach (the watch would be off)
+        period_ms = 1000.0 / self.loop.rate_hz
+        if self.loop.bus_read_timeout_ms >= period_ms:
+            raise ValueError(
+                f"[loop] bus_read_timeout_ms ({self.loop.bus_read_timeout_ms:g} ms) must be "
+                f"below the period of [loop] rate_hz ({period_ms:g} ms): the wait is part of "
+                "the tick"
+            )
+        window_ticks = self.safety.overrun_window_s * self.loop.rate_hz
+        if self.safety.overrun_limit >= window_ticks:
+            raise ValueError(
+                f"[safety] overrun_limit ({self.safety.overrun_limit}) must be below the ticks "
+                f"overrun_window_s holds at [loop] rate_hz ({window_ticks:g}): more missed "
+                "deadlines than ticks can never happen, and the watch would be off"
             )
         return self
 

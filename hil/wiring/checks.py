@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Iterator
 
 from hil.config import Config, ConfigError, robot_description_text
 from hil.wiring.connection import Connection
@@ -45,13 +50,36 @@ def _check_robot_description(config: Config) -> None:
     from, with its leg joints (pinocchio, ~20 ms): not found out after the emulator started."""
     if config.model.robot != "dyros-jet":
         return
-    text = robot_description_text(config)
+    text = robot_description_text(config)  # a URDF, or refused naming the file
     from controller.humanoid import LegModel  # pinocchio: only for a humanoid
 
-    try:
-        LegModel(text)
-    except Exception as exc:  # noqa: BLE001 - pinocchio raises its own types: say what it said
+    with _stderr_kept() as parser_said:  # the URDF parser writes its errors to fd 2 itself
+        try:
+            LegModel(text)
+            failure = None
+        except Exception as exc:  # noqa: BLE001 - pinocchio raises its own types: say them
+            failure = exc
+    if failure is not None:
+        said = " ".join(line.strip() for line in parser_said() if line.startswith("Error:"))
         raise ConfigError(
             f"{config.source} [model] description: {config.model.description!r} is not a "
-            f"description of DYROS-JET's legs: {type(exc).__name__}: {exc}"
+            f"description of DYROS-JET's legs: {type(failure).__name__}: {failure}"
+            + (f" (the URDF parser: {said})" if said else "")
         ) from None
+
+
+@contextlib.contextmanager
+def _stderr_kept() -> Iterator[Callable[[], list[str]]]:
+    """File descriptor 2 goes to a temporary file for the block; yields what was written."""
+    lines: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+") as kept:
+        os.dup2(kept.fileno(), 2)
+        try:
+            yield lambda: lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            kept.seek(0)
+            lines += kept.read().splitlines()

@@ -54,7 +54,10 @@ def test_hil_config_prints_a_file_that_loads(capsys, tmp_path: Path) -> None:
             _with("rate_hz = 200.0", 'rate_hz = "fast"'),
             r"\[loop\] rate_hz: Input should be a valid number \(got 'fast'\)",
         ),
-        (_with("rate_hz = 200.0", "rate_hz = -5.0"), r"rate_hz: Input should be greater than 0"),
+        (
+            _with("rate_hz = 200.0", "rate_hz = -5.0"),
+            r"rate_hz: Input should be greater than or equal to 10",
+        ),
         (_with("rate_hz = 200.0", "rate_hz = nan"), r"rate_hz: Input should be a finite number"),
         (_with("rate_hz = 200.0", "rate_hz = true"), r"rate_hz: Input should be a valid number"),
         (

@@ -30,7 +30,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "link_noise_window_ticks": (2, 1),  # a second difference needs two ticks to alternate
     "link_noise_fraction": (1.0, 1.0 + TINY),  # a share of the window: at most all of it
     "link_noise_fraction ": (TINY, 0.0),  # (its lower bound) > 0
-    "overrun_window_s": (TINY, 0.0),  # > 0
+    "overrun_window_s": (0.15, 0.0),  # > 0 (and holding more ticks than overrun_limit)
     "max_kdist": (0.0, -TINY),  # >= 0: Kdist itself is >= 0
     "goal_saturation_fraction": (1.0, 1.0 + TINY),  # a share: at most all
     "goal_saturation_fraction ": (TINY, 0.0),  # (its lower bound) > 0

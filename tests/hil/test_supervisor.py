@@ -79,7 +79,8 @@ def _tick(supervisor: Supervisor, k: int, sample: JointSample, goal: float | Non
 
 
 def test_goals_are_clipped_to_the_joint_limits_and_rate_limited() -> None:
-    supervisor = _supervisor(goal_saturation_window_ticks=5000)  # no goal_saturated here
+    # no goal_saturated here: 1000 clipped ticks are half of its longest window
+    supervisor = _supervisor(goal_saturation_window_ticks=2000, goal_saturation_fraction=1.0)
     step = CONFIG.safety.max_goal_rate_rad_s * PERIOD_S
     goals = [float(_tick(supervisor, k, _sample(), 5.0)[0]) for k in range(1000)]
     assert np.allclose(np.diff([0.0, *goals]), np.minimum(step, np.diff([0.0, *goals])))
@@ -196,7 +197,7 @@ def _second_difference_noise_trip(
 ) -> int | None:
     """The tick the noise watch fires at (None: never) with these readings; the motor follows
     the link's true motion (`motor`, default the link itself)."""
-    supervisor = _supervisor(max_deflection_rad=10.0)
+    supervisor = _supervisor(max_deflection_rad=0.5)
     motor = link if motor is None else motor
     for k, value in enumerate(link):
         _tick(supervisor, k, _sample(float(motor[k]), float(value)))
@@ -242,7 +243,7 @@ def test_the_noise_watch_tells_a_noisy_encoder_from_an_oscillating_joint() -> No
     link = np.round((motion * 0.8) / COUNT_RAD) * COUNT_RAD
     motor = np.round(motion / MOTOR_PULSE_RAD) * MOTOR_PULSE_RAD
     goal = _chatter(5e-3)
-    supervisor = _supervisor(max_deflection_rad=10.0)
+    supervisor = _supervisor(max_deflection_rad=0.5)
     for k in range(len(link)):
         _tick(supervisor, k, _sample(float(motor[k]), float(link[k])), float(goal[k]))
         if supervisor.events:
@@ -270,7 +271,7 @@ def test_an_oscillation_has_its_own_reaction() -> None:
         ({"on_oscillation": "torque_off"}, SafeState.TORQUE_OFF),
         ({"on_link_noisy": "torque_off"}, SafeState.HOLD),
     ):
-        supervisor = _supervisor(max_deflection_rad=10.0, **reactions)
+        supervisor = _supervisor(max_deflection_rad=0.5, **reactions)
         for k in range(len(link)):
             _tick(supervisor, k, _sample(float(motor[k]), float(link[k])))
         assert [e.cause for e in supervisor.events] == ["oscillation"]
@@ -288,7 +289,7 @@ def test_the_noise_watch_uses_the_sampling_instants_not_the_nominal_grid() -> No
     motor = 0.08 * np.sin(2 * np.pi * 5 * np.arange(400) * PERIOD_S)
     trips = {}
     for stamped in (True, False):
-        supervisor = _supervisor(max_deflection_rad=10.0)
+        supervisor = _supervisor(max_deflection_rad=0.5)
         for k in range(400):
             sample = _sample(float(motor[k]), float(link[k]))
             sample.timestamp_s = float(instants[k]) if stamped else 0.0  # 0: no usable stamps

@@ -230,7 +230,7 @@ def test_rare_faults_keep_the_run_going_and_decide_the_same(seed: int) -> None:
         ticks=600,
         bus_error_ticks=50,
         link_stale_ticks=80,
-        max_deflection_rad=1.0,
+        max_deflection_rad=0.5,
         current_guard_time_s=0.25,
         goal_saturation_window_ticks=50,
         goal_saturation_fraction=1.0,
