@@ -150,6 +150,10 @@ class SafetySection(Section):
     current_guard_fraction: float = Field(0.8, gt=0, le=1)
     current_guard_time_s: float = Field(0.6, gt=0)
     current_guard_backoff_rad: float = Field(0.05, ge=0)
+    # set: the guard mirrors the actuator model's own overload protection and fires this long
+    # before it would trip; the two keys above then do not apply (hil/safety/overload.py; below
+    # the H54-200-S500-R's modelled trip time, 1.5 s)
+    current_guard_margin_s: float | None = Field(None, gt=0, lt=1.5)
     link_stale_ticks: int = Field(4, ge=1)
     bus_error_ticks: int = Field(3, ge=1)
     overrun_limit: int = Field(20, ge=0)
@@ -193,7 +197,7 @@ class SafetySection(Section):
     @field_validator("on_exit")
     @classmethod
     def _exit(cls, value: Reaction) -> Reaction:
-        if value is Reaction.BACK_OFF:
+        if value not in (Reaction.TORQUE_OFF, Reaction.HOLD):
             raise ValueError("must be 'torque_off' or 'hold' (the torque state a run leaves)")
         return value
 
