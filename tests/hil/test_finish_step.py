@@ -7,12 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.joint_bus import JointDevices, JointSample, add_wrench
+from drivers.joint_bus import JointSample, add_wrench
 from hil.config import ConfigError, load_config
 from hil.experiments import get_experiment
 from hil.experiments.legs import REST_TICKS, FeetCarryTheRobot
 from hil.safety import SafeState, Supervisor
 from hil.vocabulary import Reaction, ReactionPolicy, RestCondition
+from tests.support.one_joint import one_joint_supervisor
 
 CONFIG = load_config()
 PERIOD_S = CONFIG.loop.period_s
@@ -36,18 +37,7 @@ class _RestAfter(RestCondition):
 
 
 def _supervisor(policy: ReactionPolicy | None = None, **safety: object) -> Supervisor:
-    config = CONFIG.changed("safety", **safety).safety
-    supervisor = Supervisor(
-        config,
-        ("joint",),
-        (JointDevices("actuator 1", "link encoder node 5"),),
-        np.array([-1.0]),
-        np.array([1.0]),
-        PERIOD_S,
-        np.array([2000.0]),
-    )
-    supervisor.set_current_limits(np.array([LIMIT_A]))
-    supervisor.torque_enabled(np.zeros(1))
+    supervisor = one_joint_supervisor(CONFIG.changed("safety", **safety).safety, PERIOD_S, LIMIT_A)
     if policy is not None:
         supervisor.set_reaction_policy(policy)
     return supervisor

@@ -21,12 +21,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from drivers.joint_bus import JointDevices, JointSample
+from drivers.joint_bus import JointSample
 from hil.config import SafetySection, load_config
 from hil.safety import OverloadProtection, Supervisor, protections_of
 from hil.safety.overload import H54_200_S500_R
 from sim_backend.servo import H54ServoParams
 from sim_backend.servo_law import SCALAR, overload_timer
+from tests.support.one_joint import one_joint_supervisor
 
 JET = load_config(robot="dyros-jet")
 TESTBED = load_config()
@@ -53,17 +54,7 @@ def _protection_trip_s(current_a: np.ndarray) -> float | None:
 
 def _guard(safety: SafetySection, current_a: np.ndarray) -> tuple[float | None, Supervisor]:
     """When the supervisor's guard fires on these samples (the tick's end), and the supervisor."""
-    supervisor = Supervisor(
-        safety,
-        ("knee",),
-        (JointDevices("actuator 4", "link encoder node 24"),),
-        np.array([-1.0]),
-        np.array([1.0]),
-        PERIOD_S,
-        np.array([2000.0]),
-    )
-    supervisor.set_current_limits(np.array([LIMIT_A]))
-    supervisor.torque_enabled(np.zeros(1))
+    supervisor = one_joint_supervisor(safety, PERIOD_S, LIMIT_A)
     for k, current in enumerate(current_a):
         sample = JointSample.empty(1, timestamp_s=k * PERIOD_S)
         sample.motor_angle_rad[:] = sample.link_angle_rad[:] = 0.0
@@ -100,7 +91,7 @@ def test_dyros_jets_guard_mirrors_the_protection_and_fires_its_margin_before_it(
         assert TRIP_S <= protection <= TRIP_S + 1.5 * PERIOD_S / PHYSICS_STEPS  # (a float sum)
         assert guard == pytest.approx(TRIP_S - margin)
         record = supervisor.counters()["current_guard"]
-        assert record["rule"] == "protection" and record["fires_at_s"] == {"knee": TRIP_S - margin}
+        assert record["rule"] == "protection" and record["fires_at_s"] == {"joint": TRIP_S - margin}
         assert "0.8 s before the protection" in supervisor.events[0].message
 
 
@@ -175,13 +166,4 @@ def test_the_testbeds_guard_is_the_fixed_rule_as_before() -> None:
 def test_a_margin_for_a_model_with_a_shorter_trip_is_refused() -> None:
     quick = OverloadProtection("quick", fraction=0.9, trip_time_s=0.5, source="a test")
     with pytest.raises(ValueError, match="not below the quick's overload trip time"):
-        Supervisor(
-            JET.safety,
-            ("knee",),
-            (JointDevices("a", "b"),),
-            np.array([-1.0]),
-            np.array([1.0]),
-            PERIOD_S,
-            np.array([2000.0]),
-            protections=(quick,),
-        )
+        one_joint_supervisor(JET.safety, PERIOD_S, LIMIT_A, protections=(quick,))
