@@ -6,13 +6,20 @@ appear once, here (and the controller names once, in `controller.ControllerKind`
 
 from __future__ import annotations
 
+import abc
 import enum
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 from controller import COMPOSITION_READINGS, ControllerKind
 from controller.gravity import GcCompliance
+
+if TYPE_CHECKING:
+    from drivers.joint_bus import JointSample
 
 __all__ = [
     "ControllerChoice",
@@ -21,6 +28,8 @@ __all__ = [
     "EmulatorClock",
     "NoticeKind",
     "Reaction",
+    "ReactionPolicy",
+    "RestCondition",
     "RunEnding",
     "SafetyCause",
     "SafetyEvent",
@@ -30,11 +39,71 @@ __all__ = [
 
 
 class Reaction(enum.StrEnum):
-    """What the supervisor does when a watch fires (configured per cause in `[safety]`)."""
+    """What the supervisor does when a watch fires (configured per cause in `[safety]`; an
+    experiment may do one as another on its robot: `ReactionPolicy`, below).
+
+    hold         hold the motors where they are
+    back_off     move each goal away from the direction its motor current pushes, then hold
+    torque_off   torque off on every joint
+    finish_step  the controller goes on along the experiment's reference until the experiment's
+                 rest is reached (a walk: both feet carry the robot), then hold; `hold` at once
+                 in an experiment that names no rest
+    """
 
     HOLD = "hold"
     BACK_OFF = "back_off"
     TORQUE_OFF = "torque_off"
+    FINISH_STEP = "finish_step"
+
+
+# --- how a robot does the reactions ---------------------------------------------------------
+# [safety] on_<cause> says what to do about a cause; what a reaction does to a robot depends on
+# the robot. Backing each joint off against its own current relieves the testbed's link pressed
+# on its block, and throws a walking humanoid over (twelve joints moved 0.05 rad each its own
+# way, on one foot). So an experiment declares, once, how its robot does the reactions
+# (`Experiment.reaction_policy`, hil/experiments/base.py): which it does as another
+# (`instead`), and its `RestCondition`, where a `finish_step` ends and the supervisor holds.
+# The supervisor (hil/safety/supervisor.py) applies it and records both the configured reaction
+# and the one done; it knows nothing of feet or steps. The humanoid's: hil/experiments/legs.py
+# `on_feet`.
+
+
+class RestCondition(abc.ABC):
+    """Where a `finish_step` ends: asked once per tick while it runs, in tick order (it may
+    count), with that tick's sample; made fresh for each run."""
+
+    @abc.abstractmethod
+    def reached(self, sample: JointSample) -> str | None:
+        """What shows the robot at rest on this tick (for the record), or None: not yet."""
+
+    @abc.abstractmethod
+    def describe(self) -> str:
+        """The condition, in a line."""
+
+
+@dataclass(frozen=True)
+class ReactionPolicy:
+    """How one run's robot does the reactions (the comment above).
+
+    instead: reaction configured -> reaction done (absent: as configured).
+    rest: where `finish_step` ends (None: it holds at once).
+    within_s: how long a `finish_step` may take to reach its rest; past it the supervisor holds
+        where the robot is (a step that cannot be finished is not walked on for ever).
+    """
+
+    instead: Mapping[Reaction, Reaction] = field(default_factory=lambda: MappingProxyType({}))
+    rest: RestCondition | None = None
+    within_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if Reaction.TORQUE_OFF in self.instead or Reaction.TORQUE_OFF in self.instead.values():
+            raise ValueError("torque_off is done as configured: a policy cannot change it")
+        if not self.within_s >= 0:
+            raise ValueError(f"within_s must be >= 0, got {self.within_s}")
+        object.__setattr__(self, "instead", MappingProxyType(dict(self.instead)))
+
+    def done_as(self, reaction: Reaction) -> Reaction:
+        return self.instead.get(reaction, reaction)
 
 
 class SafetyCause(enum.StrEnum):

@@ -188,6 +188,10 @@ class SafetySection(Section):
     current_guard_time_s: float = Field(0.6, gt=0, le=1.5)
     # at most 0.2 rad: a back-off is a small step away from the load (400 N m at K = 2000)
     current_guard_backoff_rad: float = Field(0.05, ge=0, le=0.2)
+    # set: the guard mirrors the actuator model's own overload protection and fires this long
+    # before it would trip; the two keys above then do not apply (hil/safety/overload.py; below
+    # the H54-200-S500-R's modelled trip time, 1.5 s)
+    current_guard_margin_s: float | None = Field(None, gt=0, lt=1.5)
     link_stale_ticks: WatchTicks = 4
     bus_error_ticks: WatchTicks = 3
     # more than this many missed deadlines in overrun_window_s: below the ticks the window
@@ -236,7 +240,7 @@ class SafetySection(Section):
     @field_validator("on_exit")
     @classmethod
     def _exit(cls, value: Reaction) -> Reaction:
-        if value is Reaction.BACK_OFF:
+        if value not in (Reaction.TORQUE_OFF, Reaction.HOLD):
             raise ValueError("must be 'torque_off' or 'hold' (the torque state a run leaves)")
         return value
 

@@ -12,6 +12,9 @@ An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
                     makes it happen; the emulator builds it from the same figures
     phase           a named phase of the experiment at a time; on a humanoid, the support state
                     (`support`) and a Kdist schedule (`kdist_at`) follow from it
+    reaction_policy how its robot does the supervisor's reactions (hil.vocabulary
+                    `ReactionPolicy`): the default, as configured; the humanoid's,
+                    hil/experiments/legs.py `on_feet`
     goal_offsets    only for an open-loop experiment (identification): the goal itself, as
                     offsets from the goal in force when the experiment starts; the loop sends
                     them instead of stepping the controller (the supervisor still limits them)
@@ -44,7 +47,7 @@ from hil.output.records import RunEntry
 from hil.output.report import Column, Relation
 from hil.output.rundir import RunData
 from hil.output.series import DerivedSeries
-from hil.vocabulary import ControllerChoice
+from hil.vocabulary import ControllerChoice, ReactionPolicy
 
 
 @dataclass(frozen=True)
@@ -187,6 +190,11 @@ class Experiment(abc.ABC):
         """The DOB gain per joint at `time_s` when the experiment schedules it (the controller
         ramps between values), or None: the run's constant `kdist`."""
         return None
+
+    def reaction_policy(self) -> ReactionPolicy:
+        """How this experiment's robot does the configured reactions, fresh for one run
+        (hil.vocabulary `ReactionPolicy`); the default does each as configured."""
+        return ReactionPolicy()
 
     def planned_motion(self, time_s: float) -> Any:
         """What the experiment's plan says at `time_s` beyond the reference (a

@@ -43,7 +43,7 @@ import numpy as np
 
 from drivers.joint_bus import wrench_keys
 from hil.experiments.base import Experiment, PelvisPush, World
-from hil.experiments.legs import leg_model, pelvis_rotation
+from hil.experiments.legs import FEET, leg_model, on_feet, pelvis_rotation
 from hil.output.plots import (
     ComparisonRun,
     WorldMarks,
@@ -57,14 +57,13 @@ from hil.output.records import RunEntry
 from hil.output.report import Column, Missing, Relation, check, find, metric, number
 from hil.output.rundir import RunData
 from hil.output.series import DerivedSeries, kinematics_series
-from hil.vocabulary import ControllerKind
+from hil.vocabulary import ControllerKind, ReactionPolicy
 
 SETTLE_S = 1.0  # the robot starts unloaded on its springs: the first second is the settling
 FALL_MARGIN_M = 0.01
 FALL_TIME_S = 0.1
 FALL_TILT_RAD = 0.3
 RECOVERED_M = 0.01
-FEET = ("left_foot", "right_foot")
 
 
 @dataclass(frozen=True)
@@ -157,6 +156,11 @@ class HumanoidStandingExperiment(Experiment):
         from controller.humanoid import SupportState
 
         return SupportState.DOUBLE
+
+    def reaction_policy(self) -> ReactionPolicy:
+        """The robot on its feet (legs.py `on_feet`); it stands in double support all along, so
+        a `finish_step` holds as soon as the feet are seen to carry it (SETTLE_S at most)."""
+        return on_feet(within_s=SETTLE_S)
 
     def metrics(self, run: RunData) -> dict[str, Any]:
         kinematics = StandingKinematics.of(run)

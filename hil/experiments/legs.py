@@ -5,6 +5,8 @@ posture placed on the ground.
     pelvis_rotation      world <- pelvis of a configuration q
     anchor_feet          per tick of a walking pattern, the foot that carried the robot longest
     placed_configuration link angles with one sole flat at its planned place: q, frames updated
+    on_feet              how a robot on its feet does the supervisor's reactions (every
+                         humanoid experiment's `reaction_policy`), and `FeetCarryTheRobot`, its rest
 
 The standing experiments (humanoid.py), the walking metrics and figures (walking_kinematics.py,
 walking_figures.py) and the lab's walking scheme (walking_scheme.py) read the robot through
@@ -17,6 +19,64 @@ import functools
 from typing import Any
 
 import numpy as np
+
+from drivers.joint_bus import JointSample, wrench_keys
+from hil.vocabulary import Reaction, ReactionPolicy, RestCondition
+
+FEET = ("left_foot", "right_foot")  # the feet's force/torque sensors ([[force_torque_sensor]])
+GRAVITY_M_S2 = 9.81
+# The rest a `finish_step` ends in: each foot carries at least REST_SHARE of what the two carry,
+# the two at least REST_LOAD_SHARE of the weight, for REST_TICKS ticks in a row (50 ms at
+# 200 Hz). Why these: a double support with the weight shared is what the robot can be held in
+# (the CoM between the feet); a walk's double support shares it for most of its length (the
+# lab's ZMP moves in 0.1 s at each end), while a touchdown that rocks back onto the other
+# foot shares it only briefly and less (the pid walk-slow at 13.40 s: 21-34 % for 30 ms).
+REST_SHARE = 0.25
+REST_LOAD_SHARE = 0.5
+REST_TICKS = 10
+
+
+class FeetCarryTheRobot(RestCondition):
+    """Both feet on the ground, carrying the robot between them (the thresholds above)."""
+
+    def __init__(self, weight_n: float) -> None:
+        self.weight_n = weight_n
+        self._keys = tuple(wrench_keys(foot)[2] for foot in FEET)  # fz: the sole's normal
+        self._ticks = 0
+
+    def reached(self, sample: JointSample) -> str | None:
+        left, right = (float(sample.extra.get(key, np.nan)) for key in self._keys)
+        total = left + right
+        shared = min(left, right) >= REST_SHARE * total and total >= REST_LOAD_SHARE * self.weight_n
+        self._ticks = self._ticks + 1 if shared else 0  # (False for NaN: a sensor not read)
+        if self._ticks < REST_TICKS:
+            return None
+        return (
+            f"both feet carry the robot: left {left:.0f} N ({left / total:.0%}), right "
+            f"{right:.0f} N ({right / total:.0%}) for {self._ticks} ticks"
+        )
+
+    def describe(self) -> str:
+        return (
+            f"both feet carry the robot (each >= {REST_SHARE:.0%} of the load, together >= "
+            f"{REST_LOAD_SHARE:.0%} of its weight, {REST_TICKS} ticks in a row)"
+        )
+
+
+def on_feet(within_s: float) -> ReactionPolicy:
+    """How a robot on its feet does the reactions: `back_off` (each joint moved off along its
+    own current, which throws a standing or walking robot over) is done as `finish_step` (the
+    controller finishes the step, the supervisor holds once both feet carry the robot);
+    `within_s`: the longest a step takes to its double support (then it holds anyway). The
+    others as configured: `hold` holds the posture (on one foot in a single support: standing,
+    the CoM over the stance foot), `torque_off` is a fall whatever the robot (the configured
+    causes are the actuator's own shutdown and a lost bus; docs/safety.md)."""
+    weight_n = float(leg_model().total_mass_kg) * GRAVITY_M_S2
+    return ReactionPolicy(
+        instead={Reaction.BACK_OFF: Reaction.FINISH_STEP},
+        rest=FeetCarryTheRobot(weight_n),
+        within_s=within_s,
+    )
 
 
 @functools.lru_cache(maxsize=1)

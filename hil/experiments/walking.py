@@ -58,7 +58,7 @@ import numpy as np
 
 from hil.config import Config
 from hil.experiments.base import Experiment, FloorObject, ReferenceFeedback, World
-from hil.experiments.legs import leg_model, support_state
+from hil.experiments.legs import leg_model, on_feet, support_state
 from hil.experiments.walking_kinematics import (
     WalkingKinematics,
     largest,
@@ -71,7 +71,7 @@ from hil.output.records import RunEntry
 from hil.output.report import Column, Relation, number
 from hil.output.rundir import RunData
 from hil.output.series import DerivedSeries, kinematics_series
-from hil.vocabulary import ControllerChoice
+from hil.vocabulary import ControllerChoice, ReactionPolicy
 
 SLOW_TIMING_S = (0.8, 3.2)  # single, double support (Sec. IV-C)
 DYNAMIC_TIMING_S = (0.8, 0.3)
@@ -220,6 +220,11 @@ class WalkingExperiment(Experiment):
 
     def support(self, time_s: float) -> object:
         return support_state(self.pattern.timeline.phase(self._tick(time_s)).support)
+
+    def reaction_policy(self) -> ReactionPolicy:
+        """The robot on its feet (legs.py `on_feet`): a `finish_step` walks on to the next
+        double support that shares the weight, within one step and its double support."""
+        return on_feet(within_s=self.single_support_s + self.double_support_s)
 
     def kdist_at(self, time_s: float, kdist: float) -> np.ndarray | None:
         from controller.walking import KdistSchedule, kdist_per_joint

@@ -29,11 +29,16 @@ import numpy as np
 
 from drivers.joint_bus import wrench_keys
 from hil.experiments.base import World
-from hil.experiments.legs import anchor_feet, leg_model, pelvis_rotation, placed_configuration
+from hil.experiments.legs import (
+    FEET,
+    GRAVITY_M_S2,
+    anchor_feet,
+    leg_model,
+    pelvis_rotation,
+    placed_configuration,
+)
 from hil.output.rundir import RunData
 
-FEET = ("left_foot", "right_foot")
-GRAVITY_M_S2 = 9.81
 CONTACT_SHARE = 0.05
 LANDED_SHARE = 0.3
 LIFTED_FRACTION = 0.5  # of its single support, a swing foot off the ground
@@ -215,7 +220,8 @@ class WalkingKinematics:
 def stopped_at_s(run: RunData) -> float | None:
     """Experiment time of the run's first safety stop (None: none): the supervisor's events in
     events.jsonl carry the reaction it took ("action"; its notices do not), and every reaction
-    (hold, back off, torque off) ends the controller's walk."""
+    ends the controller's walk (hold, back off and torque off at once; finish_step at the
+    double support it walks on to)."""
     times = [float(e["time_s"]) for e in run.events if e.get("action") and "time_s" in e]
     return min(times) - run.experiment_start_s if times else None
 

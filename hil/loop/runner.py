@@ -8,7 +8,8 @@ the phase proposes (hil/loop/timeline.py):
     HOLD        hold the present position
     HOMING      the slow ramp, followed by the actuator's own position servo
     EXPERIMENT  the controller along the experiment's reference (it starts bumplessly from the
-                goal in force; it is not stepped while the supervisor holds a safe state; an
+                goal in force; it is not stepped while the supervisor holds a safe state - it is
+                during a `finish_step`, until the experiment's rest; an
                 experiment with a `ReferenceFeedback` corrects the reference from the tick's
                 measured link angles first, and the log records the corrected one), or,
                 for an open-loop experiment (identification), the goal in force at its start
@@ -58,7 +59,7 @@ from hil.loop.timeline import Phase
 from hil.output.log_process import LogWriterLost, open_run_log
 from hil.output.records import RunResult
 from hil.output.rundir import load_run
-from hil.safety import Supervisor
+from hil.safety import Supervisor, protections_of
 from hil.vocabulary import RunEnding, SafetyCause, Termination
 
 __all__ = ["LOST_BUS_ERRORS", "Loop", "run_experiment", "sensor_columns", "supervisor_for"]
@@ -76,6 +77,7 @@ def supervisor_for(
         np.array([j.max_angle_rad for j in config.joints]),
         period_s,
         joint_params(config).stiffness_nm_per_rad,
+        protections_of(config),
     )
 
 
@@ -104,6 +106,7 @@ class Loop:
         supervisor = supervisor_for(config, bus.devices(), self.period)
         low, high = self.experiment.reference_range(n)
         supervisor.check_reference(low, high)
+        supervisor.set_reaction_policy(self.experiment.reaction_policy())
         self.robot: RobotModel = robot_model(config)
         self.feed = ExperimentFeed(
             config, self.experiment, request.choice, self.robot, self.period, request.run_duration_s
@@ -266,7 +269,7 @@ class Loop:
             return reference, reference  # the actuator's own servo follows the ramp
         n = self.n
         if (
-            self.supervisor.safe
+            not self.supervisor.controller_steps
             or np.count_nonzero(sample.motor_valid) != n
             or np.count_nonzero(np.isfinite(link)) != n
         ):

@@ -1,5 +1,8 @@
-"""The safety supervisor and its watches (see supervisor.py, watches.py and link_watches.py)."""
+"""The safety supervisor and its watches (see supervisor.py, watches.py and link_watches.py), the
+actuators' overload protection the current guard derives from (overload.py).
+How an experiment's robot does the reactions is hil.vocabulary's `ReactionPolicy`."""
 
+from hil.safety.overload import GuardRule, OverloadProtection, protection_of, protections_of
 from hil.safety.supervisor import (
     MAX_NOTICES_PER_KIND,
     ReferenceOutsideLimits,
@@ -11,6 +14,8 @@ from hil.safety.watches import Reporter, Watch, WatchContext
 
 __all__ = [
     "MAX_NOTICES_PER_KIND",
+    "GuardRule",
+    "OverloadProtection",
     "ReferenceOutsideLimits",
     "Reporter",
     "SafeState",
@@ -18,4 +23,6 @@ __all__ = [
     "Watch",
     "WatchContext",
     "Watches",
+    "protection_of",
+    "protections_of",
 ]

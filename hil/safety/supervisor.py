@@ -5,17 +5,24 @@ What it does each tick, in this order:
    what each watches);
 2. when a watch trips, latch the safe state configured for that cause (`[safety] on_<cause>`)
    and record it with the joint, the tick, the time and the figures (`events`); each cause is
-   reported once per joint (once per fault code for actuator faults);
+   reported once per joint (once per fault code for actuator faults). The experiment's
+   `ReactionPolicy` (hil/vocabulary.py, `set_reaction_policy`) may do a configured
+   reaction as another on its robot (the humanoid: `back_off` as `finish_step`); the event
+   names both;
 3. shape the command (`command`): in normal running, reject a non-finite goal
    (`command_invalid`), clip each goal to its joint's position limits and to the goal rate
    limit (a goal clipped at a limit on more than `goal_saturation_fraction` of the last
    `goal_saturation_window_ticks` ticks is `goal_saturated`: the controller is fighting the
    limits); in a safe state, replace it:
+       finish_step let the controller's goals through as in normal running (the controller goes
+                   on along the experiment's reference) until the policy's rest condition holds
+                   (a walk: both feet carry the robot) or its time is up, then hold
        hold        keep the motor where it was when the state was entered
        back_off    move the goal `current_guard_backoff_rad` away from the direction the motor
                    was pushing (sign of its current: relieves a load or a contact), then hold
        torque_off  torque off on every joint (the loop calls `bus.disable()`), no more goals
-   A later, more severe cause escalates (hold -> back_off -> torque_off), never the reverse.
+   A later, more severe cause escalates (finish_step -> hold -> back_off -> torque_off), never
+   the reverse.
 Settings that are legal but dangerous are a cause too (`check_settings`, at the start): a DOB
 gain beyond `max_kdist` (`gain_out_of_range`).
 Recovery is never automatic: a latched safe state lasts until the run ends; clearing an
@@ -34,11 +41,13 @@ import numpy as np
 
 from drivers.joint_bus import JointDevices, JointSample
 from hil.config import SafetySection
+from hil.safety.overload import H54_200_S500_R, GuardRule, OverloadProtection
 from hil.safety.watch_set import Watches
 from hil.safety.watches import WatchContext
 from hil.vocabulary import (
     NoticeKind,
     Reaction,
+    ReactionPolicy,
     SafetyCause,
     SafetyEvent,
     SafetyNotice,
@@ -55,13 +64,15 @@ class SafeState(enum.IntEnum):
     """The supervisor's state, ordered by severity."""
 
     RUN = 0
-    HOLD = 1
-    BACK_OFF = 2
-    TORQUE_OFF = 3
+    FINISH_STEP = 1  # the controller still steps, until the experiment's rest
+    HOLD = 2
+    BACK_OFF = 3
+    TORQUE_OFF = 4
 
     @classmethod
     def of(cls, reaction: Reaction) -> SafeState:
         return {
+            Reaction.FINISH_STEP: cls.FINISH_STEP,
             Reaction.HOLD: cls.HOLD,
             Reaction.BACK_OFF: cls.BACK_OFF,
             Reaction.TORQUE_OFF: cls.TORQUE_OFF,
@@ -72,7 +83,9 @@ class Supervisor:
     """See the module docstring. One instance per run.
 
     joint_names, devices: one entry per joint; min/max_angle_rad: the joints' position limits;
-    stiffness_nm_per_rad: per joint (the deflection message gives the gear torque).
+    stiffness_nm_per_rad: per joint (the deflection message gives the gear torque);
+    protections: each joint's actuator model's overload protection, which the current guard's
+    rule derives from (hil/safety/overload.py; default: the H54-200-S500-R's on every joint).
     """
 
     def __init__(
@@ -84,6 +97,7 @@ class Supervisor:
         max_angle_rad: np.ndarray,
         period_s: float,
         stiffness_nm_per_rad: np.ndarray,
+        protections: Sequence[OverloadProtection] | None = None,
     ) -> None:
         n = len(joint_names)
         if n == 0 or len(devices) != n:
@@ -97,10 +111,17 @@ class Supervisor:
         if not np.all(self.min_goal < self.max_goal):
             raise ValueError("every joint needs min_angle_rad < max_angle_rad")
         self.max_goal_step = np.full(n, safety.max_goal_rate_rad_s * period_s)
+        self._period_s = period_s
         context = WatchContext(
             safety, tuple(devices), period_s, np.asarray(stiffness_nm_per_rad, dtype=float)
         )
-        self.watches = Watches.default(context)
+        if protections is None:
+            protections = (H54_200_S500_R,) * n
+        if len(protections) != n:
+            raise ValueError("the supervisor needs one overload protection per joint")
+        self.watches = Watches.default(context, GuardRule.of(safety, protections))
+        self.policy = ReactionPolicy()
+        self._finish_ticks_left = 0
         self.state = SafeState.RUN
         self.events: list[SafetyEvent] = []
         self.notices: list[SafetyNotice] = []
@@ -126,6 +147,10 @@ class Supervisor:
         self.watches.actuator.expect_torque = True
         self._last_goal = np.array(goal_rad, dtype=float)
 
+    def set_reaction_policy(self, policy: ReactionPolicy) -> None:
+        """How this run's robot does the reactions (the experiment's; before the first tick)."""
+        self.policy = policy
+
     def torque_disabled(self) -> None:
         self.watches.actuator.expect_torque = False
 
@@ -147,6 +172,11 @@ class Supervisor:
         return self.state != SafeState.RUN
 
     @property
+    def controller_steps(self) -> bool:
+        """The controller's goals are wanted: normal running, or a `finish_step` on its way."""
+        return self.state <= SafeState.FINISH_STEP
+
+    @property
     def first_trip(self) -> SafetyEvent | None:
         return self.events[0] if self.events else None
 
@@ -166,6 +196,19 @@ class Supervisor:
             "goals_clipped_at_limit": per_joint(self._clipped_total),
             "goals_rate_limited": per_joint(self._rate_limited_total),
             "overruns": self.overruns,
+            "current_guard": self._guard_record(),
+        }
+
+    def _guard_record(self) -> dict[str, Any]:
+        """The guard's rule and how far each joint's timer ran (summary.json)."""
+        if not self.safety.current_guard:
+            return {"on": False}
+        guard = self.watches.current
+        peak = np.round(guard.peak_timer_s, 6).tolist()
+        return {
+            "on": True,
+            **guard.rule.record(self.names),
+            "peak_timer_s": dict(zip(self.names, peak, strict=True)),
         }
 
     # --- 1. watch --------------------------------------------------------------------------
@@ -175,7 +218,30 @@ class Supervisor:
         before = len(self.events)
         for watch in self.watches.in_order:
             watch.observe(sample, self)
+        rest = self.policy.rest
+        if rest is not None:  # asked every tick: a condition that counts ticks is current
+            at_rest = rest.reached(sample)
+            if self.state == SafeState.FINISH_STEP:
+                self._finish_step(rest.describe(), at_rest)
         return self.events[before:]
+
+    def _finish_step(self, rest: str, at_rest: str | None) -> None:
+        """Hold once the rest is reached or the policy's time is up (recorded as an event of
+        the cause that started the finish_step)."""
+        self._finish_ticks_left -= 1
+        if at_rest is None and self._finish_ticks_left > 0:
+            return
+        if at_rest is not None:
+            why = f"the step is finished ({at_rest}): holding"
+        else:
+            why = f"no rest ({rest}) within {self.policy.within_s:g} s: holding where it is"
+        self.state = SafeState.HOLD
+        first = next(e for e in self.events if e.action is Reaction.FINISH_STEP)
+        self.events.append(
+            SafetyEvent(
+                self._tick, self._time_s, first.cause, first.joint, Reaction.HOLD, why, "hold"
+            )
+        )
 
     def note_overrun(self, tick: int, time_s: float, skipped: int) -> None:
         """The loop missed a deadline this tick; `skipped` grid ticks were lost entirely."""
@@ -191,9 +257,18 @@ class Supervisor:
         if key in self._reported:
             return
         self._reported.add(key)
-        reaction = self.safety.reaction(cause)
+        configured = self.safety.reaction(cause)
+        reaction = self.policy.done_as(configured)
+        if reaction is not configured:
+            message += f" ({cause.config_key} = {configured}: on this robot done as {reaction})"
         target = SafeState.of(reaction)
+        rest = self.policy.rest
+        if target is SafeState.FINISH_STEP and rest is None:
+            target = SafeState.HOLD  # nothing to finish: hold at once
         if target > self.state:
+            if target is SafeState.FINISH_STEP and rest is not None:
+                message += f"; until {rest.describe()}"
+                self._finish_ticks_left = max(1, round(self.policy.within_s / self._period_s))
             self.state = target
         self.events.append(
             SafetyEvent(
@@ -220,7 +295,7 @@ class Supervisor:
         """
         if self.state == SafeState.TORQUE_OFF:
             return None
-        if self.state == SafeState.RUN:
+        if self.state <= SafeState.FINISH_STEP:
             goal = controller_goal if controller_goal is not None else self._last_goal
             if goal is None:
                 return None

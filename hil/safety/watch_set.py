@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from hil.safety.link_watches import LinkHistory, LinkNoiseWatch, LinkStaleWatch
+from hil.safety.overload import GuardRule
 from hil.safety.watches import (
     ActuatorFaultWatch,
     BusErrorWatch,
@@ -31,12 +32,12 @@ class Watches:
     overrun: OverrunWatch
 
     @classmethod
-    def default(cls, context: WatchContext) -> Watches:
+    def default(cls, context: WatchContext, guard: GuardRule) -> Watches:
         history = LinkHistory(context.n_joints)
         return cls(
             bus=BusErrorWatch(context),
             actuator=ActuatorFaultWatch(context),
-            current=CurrentGuardWatch(context),
+            current=CurrentGuardWatch(context, guard),
             link_stale=LinkStaleWatch(context, history),
             link_noise=LinkNoiseWatch(context, history),
             deflection=DeflectionWatch(context),

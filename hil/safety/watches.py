@@ -13,7 +13,7 @@ the events). The link encoder's watches are in hil/safety/link_watches.py.
                         the state block, so a trip is seen on the first read after it), or torque
                         found off while the loop expects it on
     CurrentGuardWatch   |current| held near the active current limit for too long (the software
-                        overload guard, switchable)
+                        overload guard, switchable; its rule: hil/safety/overload.py)
     LinkStaleWatch      (link_watches.py) no fresh link value for `link_stale_ticks` ticks (a
                         dead node), or a value frozen that long while the motor moved more than
                         half the deflection bound (a hung counter)
@@ -37,6 +37,7 @@ import numpy as np
 
 from drivers.joint_bus import ActuatorFault, DeviceRole, JointDevices, JointSample
 from hil.config import SafetySection
+from hil.safety.overload import GuardRule
 from hil.vocabulary import NoticeKind, SafetyCause
 
 
@@ -156,20 +157,20 @@ class ActuatorFaultWatch(Watch):
 
 
 class CurrentGuardWatch(Watch):
-    """The software overload guard.
+    """The software overload guard: a timer per joint that runs up while |current| >= the
+    rule's fraction of the active current limit and back down (never below 0) while it is not,
+    firing at the rule's time (`GuardRule`, hil/safety/overload.py: derived from the actuator
+    model's own protection, or the fixed figures). A timer that reset below the threshold would
+    be fooled by a current dithering around it. A joint whose actuator did not answer this tick
+    keeps its timer. `peak_timer_s`: the highest each timer ran (summary.json)."""
 
-    A timer runs up while |current| >= current_guard_fraction x the active current limit and
-    back down (never below 0) while it is not, as the emulated actuator's own overload timer
-    does (sim_backend/servo.py; ROBOTIS publish no threshold). With a fraction below the
-    actuator's (0.8 < 0.9) and a time below its (0.6 s < 1.5 s), every tick that runs the
-    actuator's timer up runs this one up too, so the guard fires first. A joint whose actuator
-    did not answer this tick keeps its timer.
-    """
-
-    def __init__(self, context: WatchContext) -> None:
+    def __init__(self, context: WatchContext, rule: GuardRule) -> None:
         super().__init__(context)
         n = context.n_joints
+        self.rule = rule
         self.timer_s = np.zeros(n)
+        self.peak_timer_s = np.zeros(n)
+        self._fires_at_s = rule.time_s - 1e-9  # (the timer is a sum of periods)
         self.current_limit_a = np.full(n, np.nan)
 
     @property
@@ -179,11 +180,10 @@ class CurrentGuardWatch(Watch):
     @current_limit_a.setter
     def current_limit_a(self, limit_a: np.ndarray) -> None:
         self._limit_a = limit_a
-        self._near_a = self.context.safety.current_guard_fraction * limit_a  # NaN: never near
+        self._near_a = self.rule.fraction * limit_a  # NaN: never near
 
     def observe(self, sample: JointSample, report: Reporter) -> None:
-        s = self.context.safety
-        if not s.current_guard:
+        if not self.context.safety.current_guard:
             return
         period = self.context.period_s
         valid = sample.motor_valid
@@ -194,16 +194,17 @@ class CurrentGuardWatch(Watch):
         timer = self.timer_s
         timer += step
         np.maximum(timer, 0.0, out=timer)
-        tripped = timer >= s.current_guard_time_s - 1e-9
+        np.maximum(self.peak_timer_s, timer, out=self.peak_timer_s)
+        tripped = timer >= self._fires_at_s
         if not np.count_nonzero(tripped):
             return
         for i in np.flatnonzero(tripped & valid).tolist():
             report.trip(
                 SafetyCause.CURRENT,
                 i,
-                f"motor current {current[i]:.2f} A: near the limit (>= "
-                f"{s.current_guard_fraction:.0%} of {self.current_limit_a[i]:.2f} A) for a net "
-                f"{timer[i]:.2f} s, before the actuator's own overload protection",
+                f"motor current {current[i]:.2f} A: near the limit of {self.current_limit_a[i]:.2f}"
+                f" A for a net {timer[i]:.2f} s, before the actuator's own overload protection "
+                f"(guard: {self.rule.describe(i)})",
             )
 
 

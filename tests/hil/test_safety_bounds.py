@@ -23,6 +23,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "current_guard_fraction ": (TINY, 0.0),  # (its lower bound) > 0
     "current_guard_time_s": (TINY, 0.0),  # > 0
     "current_guard_backoff_rad": (0.0, -TINY),  # >= 0
+    "current_guard_margin_s": (1.5 - TINY, 1.5),  # below the H54's modelled overload trip time
+    "current_guard_margin_s ": (TINY, 0.0),  # (its lower bound) > 0
     "link_stale_ticks": (1, 0),  # >= 1 tick
     "bus_error_ticks": (1, 0),  # >= 1 tick
     "overrun_limit": (0, -1),  # >= 0 missed deadlines

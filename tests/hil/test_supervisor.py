@@ -385,7 +385,8 @@ def test_back_off_moves_the_goal_away_from_the_push_and_escalation_never_reverts
 
 
 def test_an_unknown_reaction_is_refused() -> None:
-    with pytest.raises(ConfigError, match="on_overrun: Input should be 'hold', 'back_off' or"):
+    reactions = "'hold', 'back_off', 'torque_off' or 'finish_step'"
+    with pytest.raises(ConfigError, match=f"on_overrun: Input should be {reactions}"):
         _supervisor(on_overrun="panic")
 
 

@@ -215,9 +215,18 @@ def _run(seed: int, fault_rate: float, ticks: int = 400, **safety: object) -> in
     return len(reference.events)
 
 
+# the current guard's two rules (hil/safety/overload.py): the fixed figures, and the one derived
+# from the actuator's protection (90 % of the limit, here 0.01 s before its 1.5 s trip)
+GUARD_RULES = {
+    "fixed": {"current_guard_margin_s": None, "current_guard_time_s": 0.1},
+    "derived": {"current_guard_margin_s": 1.49},
+}
+
+
+@pytest.mark.parametrize("rule", sorted(GUARD_RULES))
 @pytest.mark.parametrize("seed", range(8))
-def test_faulty_runs_decide_the_same(seed: int) -> None:
-    assert _run(seed, fault_rate=0.01, current_guard_time_s=0.1) > 0
+def test_faulty_runs_decide_the_same(seed: int, rule: str) -> None:
+    assert _run(seed, fault_rate=0.01, **GUARD_RULES[rule]) > 0
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -231,6 +240,7 @@ def test_rare_faults_keep_the_run_going_and_decide_the_same(seed: int) -> None:
         bus_error_ticks=50,
         link_stale_ticks=80,
         max_deflection_rad=0.5,
+        current_guard_margin_s=None,
         current_guard_time_s=0.25,
         goal_saturation_window_ticks=50,
         goal_saturation_fraction=1.0,

@@ -15,6 +15,7 @@ import numpy as np
 
 from drivers.joint_bus import ActuatorFault, DeviceRole, JointSample
 from hil.safety import link_watches as product_link_watches
+from hil.safety.overload import GuardRule
 from hil.safety.supervisor import SafeState, Supervisor
 from hil.safety.watch_set import Watches
 from hil.safety.watches import OverrunWatch, Reporter, Watch, WatchContext
@@ -94,19 +95,16 @@ class ActuatorFaultWatch(Watch):
 
 
 class CurrentGuardWatch(Watch):
-    """The software overload guard.
+    """A timer runs up while |current| >= the rule's fraction x the active current limit and
+    back down (never below 0) while it is not; it fires at the rule's time
+    (hil/safety/overload.py `GuardRule`)."""
 
-    A timer runs up while |current| >= current_guard_fraction x the active current limit and
-    back down (never below 0) while it is not, as the emulated actuator's own overload timer
-    does (sim_backend/servo.py; ROBOTIS publish no threshold). With a fraction below the
-    actuator's (0.8 < 0.9) and a time below its (0.6 s < 1.5 s), every tick that runs the
-    actuator's timer up runs this one up too, so the guard fires first.
-    """
-
-    def __init__(self, context: WatchContext) -> None:
+    def __init__(self, context: WatchContext, rule: GuardRule) -> None:
         super().__init__(context)
         n = context.n_joints
+        self.rule = rule
         self.timer_s = np.zeros(n)
+        self.peak_timer_s = np.zeros(n)
         self.current_limit_a = np.full(n, np.nan)
 
     def observe(self, sample: JointSample, report: Reporter) -> None:
@@ -119,15 +117,16 @@ class CurrentGuardWatch(Watch):
                 continue
             current = abs(float(sample.motor_current_a[i]))
             limit = self.current_limit_a[i]
-            near = current >= s.current_guard_fraction * limit  # False if the limit is NaN
+            near = current >= self.rule.fraction[i] * limit  # False if the limit is NaN
             self.timer_s[i] = max(0.0, self.timer_s[i] + (period if near else -period))
-            if self.timer_s[i] >= s.current_guard_time_s - 1e-9:
+            self.peak_timer_s[i] = max(self.peak_timer_s[i], self.timer_s[i])
+            if self.timer_s[i] >= self.rule.time_s[i] - 1e-9:
                 report.trip(
                     SafetyCause.CURRENT,
                     i,
-                    f"motor current {current:.2f} A: near the limit (>= "
-                    f"{s.current_guard_fraction:.0%} of {limit:.2f} A) for a net "
-                    f"{self.timer_s[i]:.2f} s, before the actuator's own overload protection",
+                    f"motor current {current:.2f} A: near the limit of {limit:.2f} A for a net "
+                    f"{self.timer_s[i]:.2f} s, before the actuator's own overload protection "
+                    f"(guard: {self.rule.describe(i)})",
                 )
 
 
@@ -353,13 +352,13 @@ class _Trace:
         return _scaled(value - last, last - before, time_s - t_last, t_last - t_before, period_s)
 
 
-def per_joint_watches(context: WatchContext) -> Watches:
+def per_joint_watches(context: WatchContext, rule: GuardRule) -> Watches:
     """The supervisor's watch set (hil.safety.watch_set.Watches) made of the watches above."""
     history = [LinkHistory() for _ in range(context.n_joints)]
     return Watches(
         bus=BusErrorWatch(context),  # type: ignore[arg-type]
         actuator=ActuatorFaultWatch(context),  # type: ignore[arg-type]
-        current=CurrentGuardWatch(context),  # type: ignore[arg-type]
+        current=CurrentGuardWatch(context, rule),  # type: ignore[arg-type]
         link_stale=LinkStaleWatch(context, history),  # type: ignore[arg-type]
         link_noise=LinkNoiseWatch(context, history),  # type: ignore[arg-type]
         deflection=DeflectionWatch(context),  # type: ignore[arg-type]
@@ -374,7 +373,7 @@ class PerJointSupervisor(Supervisor):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         safety = self.safety
-        self.watches = per_joint_watches(self.watches.overrun.context)
+        self.watches = per_joint_watches(self.watches.overrun.context, self.watches.current.rule)
         assert self.watches.overrun.context.safety is safety
 
     def command(self, controller_goal: np.ndarray | None, sample: JointSample) -> np.ndarray | None:
