@@ -18,6 +18,10 @@ each row's figures come from its model's page, https://emanual.robotis.com/docs/
 - continuous torque [N m] and current [A]: the specification table ("calculated from the core
   motor's specification"); their ratio is the torque constant of the driver's torque ESTIMATE.
 
+The legacy pages' initial values other than the H54-200-S500-R's, H42-20-S300-R's and
+M54-40-S250-R's were read through nim65s/dmx-rs (generated from the same markdown), which
+agrees with every figure read on the pages themselves. docs/actuators.md tabulates the family.
+
 A model not here is refused with the reason (`REFUSED`, or "unknown").
 """
 

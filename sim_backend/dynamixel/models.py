@@ -12,9 +12,12 @@ docs/en/dxl/p/*.md), its "Control Table of EEPROM/RAM Area" (initial value, rang
 includes it pulls in; resolution, gear ratio and continuous torque/current from the
 specification data (_data/dxl_pro_info.yml, dxl_proa_info.yml, dxl_p_info.yml). Where the page
 prints "-" for an initial value or was not read, the figure is an assumption and
-`ModelFigures.assumed` says which and why. The driver's tables (drivers/dynamixel/models.py)
-are written from the same pages on their own; tests/sim_backend/test_family_tables.py compares
-the two, so that a typo on either side shows.
+`ModelFigures.assumed` says which and why. The legacy pages' initial values other than the
+H54-200-S500-R's, H42-20-S300-R's and M54-40-S250-R's were read through nim65s/dmx-rs
+(generated from the same markdown), which agrees with every figure read on the pages
+themselves. docs/actuators.md tabulates the family. The driver's tables
+(drivers/dynamixel/models.py) are written from the same pages on their own;
+tests/sim_backend/test_family_tables.py compares the two, so that a typo on either side shows.
 
 Not emulated, refused with the reason (`REFUSED`): the L42-10-S300-R, whose table is not the
 PRO layout.
