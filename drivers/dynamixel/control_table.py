@@ -218,45 +218,52 @@ _PRO_PLUS_BAUD_RATES = MappingProxyType(
 )
 
 
-def _spec(model: ActuatorModel) -> ModelSpec:
-    """A model's `ModelSpec`: its layout's items and indirect map, its row's units and caps."""
-    if model.layout is Layout.PRO:
+@dataclass(frozen=True)
+class _LayoutFacts:
+    """What a layout fixes for every model of it (the rest is the model's row)."""
+
+    items: Mapping[str, ControlItem]
+    ram_start_address: int
+    indirect_address_first: int
+    indirect_count: int
+    indirect_target_range: tuple[int, int]
+    baud_rates_bps: Mapping[int, int]
+    gain_max_raw: int
+
+
+_LAYOUTS: Mapping[Layout, _LayoutFacts] = MappingProxyType(
+    {
         # include control_table_49_indirectdata_pro: Indirect Address 1..256 at 49..559
         # (defaults 634..889), Indirect Data 1..256 at 634..889, targets limited to 562..892.
         # Gains 0..65,535 (the PRO tables; the include says 0 ~ 32,767).
-        return ModelSpec(
-            model_number=model.number,
-            model_name=model.name,
-            layout=model.layout,
-            units=units_of(model),
-            items=_PRO_ITEMS,
-            ram_start_address=562,
-            indirect_address_first=49,
-            indirect_data_first=634,
-            indirect_count=256,
-            indirect_target_range=(562, 892),
-            baud_rates_bps=_PRO_BAUD_RATES,
-            torque_limit_max_raw=model.current_cap_raw,
-            gain_max_raw=65_535,
-            position_mode=3,
-        )
-    # PRO+ tables: Indirect Address 1..128 at 168..422, Indirect Data 1..128 at 634..761, the
-    # table's range 512 ~ 1,023; gains 0 ~ 32,767.
+        Layout.PRO: _LayoutFacts(_PRO_ITEMS, 562, 49, 256, (562, 892), _PRO_BAUD_RATES, 65_535),
+        # PRO+ tables: Indirect Address 1..128 at 168..422, Indirect Data 1..128 at 634..761,
+        # the table's range 512 ~ 1,023; gains 0 ~ 32,767.
+        Layout.PRO_PLUS: _LayoutFacts(
+            _PRO_PLUS_ITEMS, 512, 168, 128, (512, 1023), _PRO_PLUS_BAUD_RATES, 32_767
+        ),
+    }
+)
+
+
+def _spec(model: ActuatorModel) -> ModelSpec:
+    """A model's `ModelSpec`: its layout's items and indirect map, its row's units and caps."""
+    facts = _LAYOUTS[model.layout]
     return ModelSpec(
         model_number=model.number,
         model_name=model.name,
         layout=model.layout,
         units=units_of(model),
-        items=_PRO_PLUS_ITEMS,
-        ram_start_address=512,
-        indirect_address_first=168,
-        indirect_data_first=634,
-        indirect_count=128,
-        indirect_target_range=(512, 1023),
-        baud_rates_bps=_PRO_PLUS_BAUD_RATES,
+        items=facts.items,
+        ram_start_address=facts.ram_start_address,
+        indirect_address_first=facts.indirect_address_first,
+        indirect_data_first=634,  # Indirect Data 1 on every model
+        indirect_count=facts.indirect_count,
+        indirect_target_range=facts.indirect_target_range,
+        baud_rates_bps=facts.baud_rates_bps,
         torque_limit_max_raw=model.current_cap_raw,
-        gain_max_raw=32_767,
-        position_mode=3,
+        gain_max_raw=facts.gain_max_raw,
+        position_mode=3,  # Position Control Mode on every model
     )
 
 
