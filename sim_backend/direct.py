@@ -26,18 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_backend.dynamixel import Firmware
 from sim_backend.robots import build_hardware
 from sim_backend.scenario import ActiveFaults, FaultSchedule
-from sim_backend.servo import (
-    AMPERE_PER_CURRENT_UNIT,
-    RAD_PER_PULSE,
-    RAD_S_PER_VELOCITY_UNIT,
-)
 from sim_backend.spec import EmulatorSpec
 
 FORCE_SENSOR_NEWTONS_PER_COUNT = 1e-3  # the emulated CiA 404 sensor's PV is in mN
 # Present Position, Velocity (611, 615), two undefined bytes, Present Current (621): the block
-# the drivers' sync read takes, one READ per device
+# the drivers' sync read takes, one READ per device (the legacy PRO table: other layouts are
+# served over the emulated buses only)
 _PRESENT_BLOCK = (611, 12)
 
 
@@ -64,6 +61,14 @@ class DirectTestbed:
     def __init__(self, spec: EmulatorSpec) -> None:
         self.spec = spec
         self.robot = build_hardware(spec)
+        pro_plus = [d.model.name for d in self.robot.devices if d.model.figures.firmware.pro_plus]
+        if pro_plus:
+            raise ValueError(
+                f"the in-process testbed reads the legacy PRO table; {', '.join(pro_plus)} "
+                f"have the {Firmware.PRO_A.value}/{Firmware.P.value} table: use the emulated buses"
+            )
+        # each device's units (its model's)
+        self._units = [device.model.units for device in self.robot.devices]
         n = len(spec.joints)
         self.n_joints = n
         self.schedule = FaultSchedule(spec.scenario.faults, n)
@@ -145,9 +150,10 @@ class DirectTestbed:
         for i, (device, mount) in enumerate(zip(devices, self.robot.mountings, strict=True)):
             if answers[i]:
                 pulses, speed, amperes = values[3 * i : 3 * i + 3]
-                angle[i] = mount.to_physical(pulses * RAD_PER_PULSE)
-                velocity[i] = mount.direction * (speed * RAD_S_PER_VELOCITY_UNIT)
-                current[i] = mount.direction * (amperes * AMPERE_PER_CURRENT_UNIT)
+                units = self._units[i]
+                angle[i] = mount.to_physical(pulses * units.rad_per_pulse)
+                velocity[i] = mount.direction * (speed * units.rad_s_per_velocity_unit)
+                current[i] = mount.direction * (amperes * units.ampere_per_current_unit)
                 errors[i] = device.hardware_error_status
                 torque[i] = device.torque_enabled
         return (
@@ -188,7 +194,7 @@ class DirectTestbed:
         if not self.hears(i):
             return False
         device = self.robot.devices[i]
-        pulses = round(self.robot.mountings[i].to_device(goal_rad) / RAD_PER_PULSE)
+        pulses = round(self.robot.mountings[i].to_device(goal_rad) / self._units[i].rad_per_pulse)
         return device.write_item("Goal Position", pulses) == 0
 
     def write_goals(self, goals_rad: np.ndarray) -> list[bool]:
@@ -211,8 +217,8 @@ class DirectTestbed:
     def set_current_limit_a(self, i: int, limit_a: float) -> bool:
         if not self.hears(i):
             return False
-        units = round(limit_a / AMPERE_PER_CURRENT_UNIT)
+        units = round(limit_a / self._units[i].ampere_per_current_unit)
         return self.robot.devices[i].write_item("Torque Limit", units) == 0
 
     def current_limit_a(self, i: int) -> float:
-        return self.robot.devices[i].item("Torque Limit") * AMPERE_PER_CURRENT_UNIT
+        return self.robot.devices[i].item("Torque Limit") * self._units[i].ampere_per_current_unit

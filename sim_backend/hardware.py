@@ -9,7 +9,9 @@ in-process testbed (sim_backend/direct.py) both drive:
                (sim_backend/humanoid/), a link encoder per joint, a six-axis force/torque
                sensor per foot
 
-Every device has the same control table (`H54Device`), and every sensor is a CAN node
+Every device is a `DynamixelProDevice` of its joint's model (the testbed's joints may be any
+model of the family: `EmulatedJointSpec.model`, its servo figures from
+`sim_backend.servo_models`), and every sensor is a CAN node
 (`CanopenSlave`), so the buses and the drivers see the same thing whichever robot it is.
 """
 
@@ -24,8 +26,9 @@ import numpy as np
 
 from sim_backend.canbus import ForceSensorNode, LinkEncoderNode
 from sim_backend.canbus.ft_sensor_node import ForceTorqueSensorNode
-from sim_backend.dynamixel import BAUD_RATE_BPS, H54Device
+from sim_backend.dynamixel import BAUD_RATE_BPS, DynamixelProDevice, device_model
 from sim_backend.plant import ObstacleParams, TestbedPlantParams
+from sim_backend.servo_models import servo_params_for
 from sim_backend.spec import EmulatorSpec
 from sim_backend.testbed import EmulatedJoint, Mounting, VirtualTestbed
 
@@ -65,7 +68,7 @@ class SteppedPlant(Protocol):
 class EmulatedHardware(SteppedPlant, Protocol):
     """What the buses serve and the physics clock they share (see the module docstring)."""
 
-    devices: list[H54Device]  # one per joint, in the spec's joint order
+    devices: list[DynamixelProDevice]  # one per joint, in the spec's joint order
     mountings: list[Mounting]  # how each actuator is mounted (the host's offset/direction)
     encoders: list[LinkEncoderNode]  # one per joint
     force_sensor: ForceSensorNode | None
@@ -87,7 +90,10 @@ def sensor_nodes(hardware: EmulatedHardware) -> list[object]:
     return nodes
 
 
-def baud_index(baudrate: int) -> int:
+def baud_index(baudrate: int, model: str | None = None) -> int:
+    """The Baud Rate item value of `baudrate` on `model` (None: the PRO's table)."""
+    if model is not None:
+        return device_model(model).baud_index(baudrate)
     return next(index for index, bps in BAUD_RATE_BPS.items() if bps == baudrate)
 
 
@@ -199,7 +205,7 @@ class EmulatedTestbed(PlantClock):
 
     def __init__(
         self,
-        devices: list[H54Device],
+        devices: list[DynamixelProDevice],
         joints: list[EmulatedJoint],
         encoders: list[LinkEncoderNode],
         force_sensor: ForceSensorNode | None,
@@ -218,18 +224,19 @@ class EmulatedTestbed(PlantClock):
     @classmethod
     def build(cls, spec: EmulatorSpec) -> EmulatedTestbed:
         plant_params = with_obstacle(spec.plant, spec.scenario.obstacle_contact_angle_rad)
-        devices: list[H54Device] = []
+        devices: list[DynamixelProDevice] = []
         joints: list[EmulatedJoint] = []
         for index, joint_spec in enumerate(spec.joints):
-            device = H54Device(
+            device = DynamixelProDevice(
                 joint_spec.dxl_id,
-                baud_index=baud_index(spec.baudrate),
+                model=joint_spec.model,
+                baud_index=baud_index(spec.baudrate, joint_spec.model),
                 reboot_time_s=spec.reboot_time_s,
             )
             joint = EmulatedJoint(
                 device,
                 plant_params,
-                spec.servo,
+                servo_params_for(joint_spec.model, spec.servo),
                 motor_mounting=Mounting(joint_spec.motor_direction, joint_spec.motor_offset_rad),
                 rng=rng(spec.seed, 1000 + index),
             )

@@ -1,4 +1,6 @@
-"""The H54-200-S500-R's own position servo and overload protection, as its firmware would run them.
+"""The DYNAMIXEL PRO's own position servo and overload protection, as its firmware would run them
+(written for the H54-200-S500-R; every other model of the family runs the same law on its own
+table, units and figures: `sim_backend.servo_models`).
 
 The e-Manual documents the loop structure (Position P Gain 594 -> Velocity P/I Gain 588/586 ->
 current, capped by Goal Torque 604 or Torque Limit 30, speed capped by Goal Velocity 600 or
@@ -46,22 +48,30 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
+
+from sim_backend.dynamixel.models import BY_NAME, DEFAULT_MODEL
+
+if TYPE_CHECKING:
+    from sim_backend.dynamixel.control_table import DeviceModel
 
 OVERLOAD_BIT = 0x20
 
-# Control-table units of the H54-200-S500-R (e-Manual; also in drivers/, converted there for the
-# host side - the emulator converts on its own side of the wire).
-PULSES_PER_REV = 501_923
-RAD_PER_PULSE = 2.0 * math.pi / PULSES_PER_REV
-RPM_PER_VELOCITY_UNIT = 0.00199234
-RAD_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT * 2.0 * math.pi / 60.0
-AMPERE_PER_CURRENT_UNIT = 33.0 / 2048.0  # 16.11328 mA
+# Control-table units of the H54-200-S500-R, the testbed's and the humanoid's actuator (every
+# model's: sim_backend.dynamixel.models; the drivers convert on their own side of the wire).
+_H54_UNITS = BY_NAME[DEFAULT_MODEL].units
+PULSES_PER_REV = _H54_UNITS.pulses_per_rev
+RAD_PER_PULSE = _H54_UNITS.rad_per_pulse
+RPM_PER_VELOCITY_UNIT = _H54_UNITS.velocity_unit_rpm
+RAD_S_PER_VELOCITY_UNIT = _H54_UNITS.rad_s_per_velocity_unit
+AMPERE_PER_CURRENT_UNIT = _H54_UNITS.ampere_per_current_unit  # 16.11328 mA
+# Operating Mode values, the same on every model (PRO+ adds 16, PWM: run as current mode)
 POSITION_MODE, EXTENDED_POSITION_MODE, VELOCITY_MODE, TORQUE_MODE = 3, 4, 1, 0
 
 
 class ControlTable(Protocol):
-    """The firmware's view of its control table (sim_backend.dynamixel.H54Device provides it).
+    """The firmware's view of its control table (sim_backend.dynamixel.DynamixelProDevice
+    provides it); `model` says which items hold the limits and in which units.
 
     `revision` changes whenever anything but the firmware's own measurements is written: the
     firmware decodes its registers again only then (it runs every physics step, 12 times over on
@@ -72,6 +82,9 @@ class ControlTable(Protocol):
     decodes only the goal after the host's every-tick write; and `add_write_counter(counter)`:
     the table steps a `WriteCounter` shared by the tables of a firmware bank with its
     `revision`, so that the bank sees with one comparison per physics step that none changed."""
+
+    @property
+    def model(self) -> DeviceModel: ...
 
     def item(self, name: str) -> int: ...
 
@@ -217,20 +230,32 @@ class ServoOutput:
     torque_limit_nm: float
 
 
-def goal_angle_rad(goal_position_pulses: int, homing_offset_pulses: int) -> float:
-    """Goal Position (596) in the device frame [rad]: the Homing Offset (20) added, as Present
-    Position subtracts it."""
-    return (goal_position_pulses + homing_offset_pulses) * RAD_PER_PULSE
+def goal_angle_rad(
+    goal_position_pulses: int, homing_offset_pulses: int, rad_per_pulse: float = RAD_PER_PULSE
+) -> float:
+    """Goal Position in the device frame [rad]: the Homing Offset added, as Present Position
+    subtracts it."""
+    return (goal_position_pulses + homing_offset_pulses) * rad_per_pulse
 
 
 def decode_registers(table: ControlTable, params: H54ServoParams) -> Registers:
     """The firmware's inputs in SI from its control table (each gain scaled linearly with its
-    register, the factory default register mapping to the SI default of `params`)."""
+    register, the factory default register mapping to the SI default of `params`), in the
+    model's units and from its items (PRO: Goal Torque caps the current in every mode and Goal
+    Velocity the speed; PRO+: Current Limit caps it, Goal Current is the current mode's goal and
+    Profile Velocity caps the speed)."""
     p, item = params, table.item
-    goal_torque, torque_limit = item("Goal Torque"), item("Torque Limit")
-    current_units = abs(goal_torque) if 0 < abs(goal_torque) <= torque_limit else torque_limit
-    goal_velocity, velocity_limit = item("Goal Velocity"), item("Velocity Limit")
-    speed_units = abs(goal_velocity) if 0 < abs(goal_velocity) <= velocity_limit else velocity_limit
+    names, units = table.model.firmware_items, table.model.units
+    ampere, rad_s = units.ampere_per_current_unit, units.rad_s_per_velocity_unit
+    goal_torque, torque_limit = item(names.goal_current), item(names.current_limit)
+    current_units = (
+        abs(goal_torque)
+        if names.goal_current_caps_every_mode and 0 < abs(goal_torque) <= torque_limit
+        else torque_limit
+    )
+    speed_cap, velocity_limit = item(names.speed_cap), item("Velocity Limit")
+    speed_units = abs(speed_cap) if 0 < abs(speed_cap) <= velocity_limit else velocity_limit
+    goal_velocity = item("Goal Velocity")
     homing_offset = item("Homing Offset")
     cascade = p.cascade_at(
         item("Position P Gain"), item("Velocity P Gain"), item("Velocity I Gain")
@@ -239,11 +264,11 @@ def decode_registers(table: ControlTable, params: H54ServoParams) -> Registers:
         position_gain_per_s=cascade.position_gain_per_s,
         velocity_gain_nms_per_rad=cascade.velocity_gain_nms_per_rad,
         integral_rate_nm_per_rad=cascade.integral_rate_nm_per_rad,
-        current_cap_a=current_units * AMPERE_PER_CURRENT_UNIT,
-        speed_cap_rad_s=speed_units * RAD_S_PER_VELOCITY_UNIT,
-        goal_velocity_rad_s=goal_velocity * RAD_S_PER_VELOCITY_UNIT,
-        goal_torque_a=goal_torque * AMPERE_PER_CURRENT_UNIT,
+        current_cap_a=current_units * ampere,
+        speed_cap_rad_s=speed_units * rad_s,
+        goal_velocity_rad_s=goal_velocity * rad_s,
+        goal_torque_a=goal_torque * ampere,
         operating_mode=item("Operating Mode"),
         homing_offset_pulses=homing_offset,
-        moving_threshold_rad_s=item("Moving Threshold") * RAD_S_PER_VELOCITY_UNIT,
+        moving_threshold_rad_s=item("Moving Threshold") * rad_s,
     )

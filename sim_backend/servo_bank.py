@@ -1,4 +1,5 @@
-"""n H54 firmwares stepped together: the servo law of servo.py on numpy arrays over joints.
+"""n PRO firmwares stepped together: the servo law of servo.py on numpy arrays over joints (each
+joint in its own model's units and items: the tables say which).
 
 The law, the defaults and the overload rule are documented in sim_backend/servo.py (its
 docstring is the spec) and written out in servo_law.py; this module runs them for all n
@@ -56,6 +57,7 @@ from sim_backend.servo_law import (
     Decoded,
     InPlaceLaw,
     JointView,
+    UnitFactors,
     overload_timer,
     to_device_units,
     velocity_loop,
@@ -107,6 +109,19 @@ class H54FirmwareBank:
         def figure(name: str) -> np.ndarray:
             return np.array([getattr(p, name) for p in self.params], dtype=float)
 
+        # each table's units (its model's): arrays for the bank, Python numbers for a bank of one
+        units = [table.model.units for table in self.tables]
+        self._rad_per_pulse = [u.rad_per_pulse for u in units]
+        self._unit_factors = UnitFactors(
+            np.array(self._rad_per_pulse),
+            np.array([u.rad_s_per_velocity_unit for u in units]),
+            np.array([u.ampere_per_current_unit for u in units]),
+        )
+        self._unit_factors_one = UnitFactors(
+            units[0].rad_per_pulse,
+            units[0].rad_s_per_velocity_unit,
+            units[0].ampere_per_current_unit,
+        )
         self.torque_constant = figure("torque_constant_nm_per_a")
         self.brake_damping = figure("dynamic_brake_damping_nms_per_rad")
         self.overload_trip_s = figure("overload_trip_time_s")
@@ -213,7 +228,9 @@ class H54FirmwareBank:
                 self.limits_revision += 1
             assert registers is not None
             decoded.goal_angle[joint] = goal_angle_rad(
-                table.item("Goal Position"), registers.homing_offset_pulses
+                table.item("Goal Position"),
+                registers.homing_offset_pulses,
+                self._rad_per_pulse[joint],
             )
             self._goal_writes[joint] = goal_writes
         self._revisions = revisions
@@ -389,7 +406,16 @@ class H54FirmwareBank:
             measured = velocity + self._velocity_noise_measured[0].item()
             angle = direction * self._angle[0].item() + self._offset_one
             current = self.last_current_a[0].item()
-            units = to_device_units(SCALAR, angle, velocity, measured, current, *homing, *threshold)
+            units = to_device_units(
+                SCALAR,
+                angle,
+                velocity,
+                measured,
+                current,
+                *homing,
+                *threshold,
+                self._unit_factors_one,
+            )
             return self._rows([[int(value)] for value in units])
         angle, velocity = self._angle, self._velocity
         if not self._identity_mounting:  # the device frame, as the law saw it
@@ -404,6 +430,7 @@ class H54FirmwareBank:
             self.last_current_a,
             np.array(homing, float),
             np.array(threshold),
+            self._unit_factors,
         )
         return self._rows([value.astype(np.int64).tolist() for value in units])
 

@@ -19,16 +19,13 @@ joints as the arrays the law reads.
 from __future__ import annotations
 
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from sim_backend.servo import (
-    AMPERE_PER_CURRENT_UNIT,
     EXTENDED_POSITION_MODE,
     POSITION_MODE,
-    RAD_PER_PULSE,
-    RAD_S_PER_VELOCITY_UNIT,
     VELOCITY_MODE,
     H54ServoParams,
     Registers,
@@ -188,16 +185,31 @@ def to_device_units(
     current: Any,
     homing_offset_pulses: Any,
     moving_threshold_rad_s: Any,
+    units: UnitFactors,
 ) -> tuple[Any, Any, Any, Any]:
     """(Moving, Present Position, Present Velocity, Present Current) in the control table's
-    units (e-Manual: pulses, 0.00199234 rpm, 16.11328 mA), rounded half to even and saturated
-    to the items' sizes; the device frame in, Homing Offset subtracted from the position."""
+    units (the model's: e.g. the H54-200-S500-R's pulses, 0.00199234 rpm, 16.11328 mA), rounded
+    half to even and saturated to the items' sizes; the device frame in, Homing Offset
+    subtracted from the position."""
     return (
         abs(velocity) > moving_threshold_rad_s,
-        ops.clip(ops.round(angle / RAD_PER_PULSE - homing_offset_pulses), _INT32_MIN, _INT32_MAX),
-        ops.clip(ops.round(measured_velocity / RAD_S_PER_VELOCITY_UNIT), _INT32_MIN, _INT32_MAX),
-        ops.clip(ops.round(current / AMPERE_PER_CURRENT_UNIT), _INT16_MIN, _INT16_MAX),
+        ops.clip(
+            ops.round(angle / units.rad_per_pulse - homing_offset_pulses), _INT32_MIN, _INT32_MAX
+        ),
+        ops.clip(
+            ops.round(measured_velocity / units.rad_s_per_velocity_unit), _INT32_MIN, _INT32_MAX
+        ),
+        ops.clip(ops.round(current / units.ampere_per_current_unit), _INT16_MIN, _INT16_MAX),
     )
+
+
+class UnitFactors(NamedTuple):
+    """The unit factors `to_device_units` divides by: Python numbers for one joint, arrays (one
+    entry per joint, each its model's) for a bank."""
+
+    rad_per_pulse: Any
+    rad_s_per_velocity_unit: Any
+    ampere_per_current_unit: Any
 
 
 class InPlaceLaw:

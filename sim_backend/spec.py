@@ -11,7 +11,8 @@ from typing import Any
 from sim_backend.canbus.encoder_node import RLC2IC_NOISE_COUNTS_RMS
 from sim_backend.canbus.force_sensor_node import FORCE_SENSOR_NOISE_N_RMS
 from sim_backend.canbus.slave import DEFAULT_BOOTUP_DELAY_S
-from sim_backend.dynamixel import BAUD_RATE_BPS
+from sim_backend.dynamixel import device_model
+from sim_backend.dynamixel.models import DEFAULT_MODEL
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import Scenario
 from sim_backend.servo import H54ServoParams
@@ -64,7 +65,8 @@ class HumanoidSpec:
 
 @dataclass(frozen=True)
 class EmulatedJointSpec:
-    """One emulated joint: its bus addresses and how its sensors are mounted."""
+    """One emulated joint: its bus addresses, how its sensors are mounted, and its actuator's
+    model (an e-Manual name of the DYNAMIXEL PRO family, sim_backend/dynamixel/models.py)."""
 
     dxl_id: int
     encoder_node_id: int
@@ -73,6 +75,7 @@ class EmulatedJointSpec:
     encoder_offset_rad: float = 0.0
     motor_direction: int = 1
     motor_offset_rad: float = 0.0
+    model: str = DEFAULT_MODEL
 
 
 @dataclass(frozen=True)
@@ -128,11 +131,8 @@ class EmulatorSpec:
             raise ValueError("a dyros-jet emulator needs its HumanoidSpec, and only it")
         if self.clock not in CLOCKS:
             raise ValueError(f"clock must be one of {CLOCKS}, got {self.clock!r}")
-        if self.baudrate not in BAUD_RATE_BPS.values():
-            raise ValueError(
-                f"an H54 cannot run at {self.baudrate} bps; its Baud Rate item offers "
-                f"{sorted(BAUD_RATE_BPS.values())}"
-            )
+        for joint in self.joints:  # ValueError naming a model not served or the rates it offers
+            device_model(joint.model).baud_index(self.baudrate)
         if not self.period_s > 0:
             raise ValueError("period_s must be > 0")
         if not 0 <= self.usb_latency_timer_s <= 0.255:  # FTDI: 1..255 ms

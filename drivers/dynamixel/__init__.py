@@ -1,4 +1,6 @@
-"""Dynamixel Pro (H54-200-S500-R) driver on the unmodified `dynamixel-sdk` (Protocol 2.0).
+"""DYNAMIXEL PRO driver on the unmodified `dynamixel-sdk` (Protocol 2.0): every model of the
+family with a published control table (`ACTUATOR_MODELS`, drivers/dynamixel/models.py), mixed
+on one chain as the joints' configuration says.
 
 - `DynamixelChain`: a chain of actuators on one port (state block by one sync read, goals by one
   sync write, enable / disable / reboot, hardware-error reporting), SI units at its interface.
@@ -16,8 +18,10 @@ from drivers.dynamixel.chain import (
 from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
 from drivers.dynamixel.control_table import (
     MODELS,
+    REGISTERS,
     ControlItem,
     ModelSpec,
+    model_name,
     model_number,
     model_spec,
 )
@@ -28,6 +32,7 @@ from drivers.dynamixel.errors import (
     PortGoneError,
 )
 from drivers.dynamixel.hardware_error import HardwareError, actuator_fault
+from drivers.dynamixel.models import ACTUATOR_MODELS, ActuatorModel, Layout
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.scan import (
     FoundDevice,
@@ -37,12 +42,16 @@ from drivers.dynamixel.scan import (
     scan,
     scan_bauds,
 )
-from drivers.dynamixel.units import H54_200_S500_R_UNITS, DeviceUnits
+from drivers.dynamixel.units import H54_200_S500_R_UNITS, ChainUnits, DeviceUnits
 
 __all__ = [
+    "ACTUATOR_MODELS",
     "H54_200_S500_R_UNITS",
     "MODELS",
+    "REGISTERS",
+    "ActuatorModel",
     "BusBenchResult",
+    "ChainUnits",
     "ControlItem",
     "CycleStats",
     "DeviceInfo",
@@ -57,6 +66,7 @@ __all__ = [
     "FoundDevice",
     "HardwareError",
     "HardwareErrorStatus",
+    "Layout",
     "LowLatencyPortHandler",
     "ModelSpec",
     "PortGoneError",
@@ -65,6 +75,7 @@ __all__ = [
     "ScanStep",
     "actuator_fault",
     "bench_bus",
+    "model_name",
     "model_number",
     "model_spec",
     "open_port",

@@ -70,12 +70,16 @@ def bench_bus(chain: DynamixelChain, cycles: int = 1000, warmup: int = 50) -> Bu
     if not state.all_valid:
         raise BusError("bench: the first read failed: " + "; ".join(state.errors))
     goals_rad = state.position_rad.copy()
-    spec = chain.spec
+    if chain.config.mixed:  # the bare loop is the textbook one: one model's addresses
+        raise BusError("bench: the bare SDK loop needs a chain of one model; this one mixes them")
+    spec = chain.specs[0]
     position = spec.item("Present Position")
     velocity = spec.item("Present Velocity")
     current = spec.item("Present Current")
-    block_length = current.address + current.size - position.address
-    bare_read = GroupSyncRead(port, packet, position.address, block_length)
+    # Present Position .. Present Current (PRO: 611..622; PRO+: 574..583, the other order)
+    first = min(position.address, current.address)
+    block_length = max(position.address + position.size, current.address + current.size) - first
+    bare_read = GroupSyncRead(port, packet, first, block_length)
     bare_write = GroupSyncWrite(port, packet, spec.item("Goal Position").address, 4)
     directions = np.array([joint.direction for joint in chain.config.joints])
     offsets = np.array([joint.offset_rad for joint in chain.config.joints])

@@ -1,7 +1,11 @@
-"""`DynamixelChain`: a chain of Dynamixel Pro H54s on one port, over the unmodified dynamixel-sdk.
+"""`DynamixelChain`: a chain of DYNAMIXEL PROs on one port, over the unmodified dynamixel-sdk.
+The devices may be of several models of the family (each joint's model: its configuration,
+checked by PING at `open()`); each converts in its own units.
 
 One tick is one SYNC_READ of the indirect-mapped state block (`state_block.py`) and one
-SYNC_WRITE of Goal Position (596, 4 bytes): two bus transactions for any number of devices.
+SYNC_WRITE of Goal Position (4 bytes: 596 on the PRO, 564 on PRO+): two bus transactions for any
+number of devices; a chain that mixes the PRO and PRO+ layouts writes one SYNC_WRITE per layout
+(`transfer_groups.py` says why).
 
 This module holds the chain's state and its lifecycle: `open()` identifies and configures the
 devices (the steps in `configure.py`), `close()` releases the port. The per-tick transactions
@@ -24,9 +28,10 @@ from drivers.dynamixel.device_io import DeviceIO
 from drivers.dynamixel.errors import EepromChangeRefused
 from drivers.dynamixel.port import LowLatencyPortHandler, open_port
 from drivers.dynamixel.state import DeviceInfo, DynamixelState, HardwareErrorStatus
-from drivers.dynamixel.state_block import DirectStateSpan, StateBlockLayout
+from drivers.dynamixel.state_block import STATE_BLOCK_ITEMS, DirectStateSpan, StateBlockLayout
 from drivers.dynamixel.sync_transfer import SyncTransfer
 from drivers.dynamixel.torque_control import TorqueControl
+from drivers.dynamixel.transfer_groups import ReadGroup, read_groups, write_groups
 from drivers.dynamixel.units import current_limit_raw_to_a
 from drivers.joint_bus import BusError
 from drivers.peer_wait import PeerWait
@@ -42,7 +47,7 @@ __all__ = [
 
 
 class DynamixelChain(SyncTransfer, TorqueControl):
-    """A chain of actuators of one model on one port (see the module docstring).
+    """A chain of actuators on one port, of one model or several (see the module docstring).
 
     Lifecycle: `open()` (identify, configure, never enables torque), `enable()`, then per tick
     `read_state()` and `write_goals()`, `disable()`, `close()` (does not change torque).
@@ -52,13 +57,16 @@ class DynamixelChain(SyncTransfer, TorqueControl):
     def __init__(self, config: DynamixelChainConfig, patience: PeerWait | None = None) -> None:
         self.config = config
         self.patience = patience  # a device that is a process here: drivers/peer_wait.py
-        self.spec = config.spec
-        self.units = self.spec.units
-        self.layout = StateBlockLayout(self.spec, config.indirect_first_index)
-        self._decoder = self.layout.decoder()
-        self._block_size = self.layout.size
+        self.spec = config.spec  # the chain's default model
+        self.specs = config.specs  # each joint's, in joint order
+        self.units = config.units  # each joint's units as arrays (ChainUnits)
+        self.layouts = tuple(
+            StateBlockLayout(spec, config.indirect_first_index) for spec in self.specs
+        )
+        self.layout = self.layouts[0]
         self._joints = config.joints
         self._ids = config.dxl_ids
+        self._spec_of = dict(zip(self._ids, self.specs, strict=True))
         self._index_of = {dxl_id: index for index, dxl_id in enumerate(self._ids)}
         self._labels = {joint.dxl_id: joint.label for joint in self._joints}
         self._direction = np.array([joint.direction for joint in self._joints], dtype=np.float64)
@@ -66,25 +74,24 @@ class DynamixelChain(SyncTransfer, TorqueControl):
         self._min_rad = np.array([joint.min_position_rad for joint in self._joints])
         self._max_rad = np.array([joint.max_position_rad for joint in self._joints])
         self._device_limits = {
-            joint.dxl_id: joint.device_position_limits_pulses(self.units) for joint in self._joints
+            joint.dxl_id: joint.device_position_limits_pulses(spec.units)
+            for joint, spec in zip(self._joints, self.specs, strict=True)
         }
         self._packet = PacketHandler(2.0)
         self._port: LowLatencyPortHandler | None = None
         self._io: DeviceIO | None = None
-        self._sync_read: GroupSyncRead | None = None
+        # The sync reads (one per state-block geometry, made at open) and sync writes (one per
+        # Goal Position address; their parameters built once, each tick changes only the goal
+        # bytes): one each unless the chain mixes layouts (transfer_groups.py).
+        self._read_groups: list[ReadGroup] = []
         self._request_result: int | None = None  # request_state() sent, replies not collected
-        # The SYNC_WRITE's parameters, [ID, 4 bytes of Goal Position] per device, built once:
-        # each tick changes only the goal bytes (`write_goals`).
-        self._goal_params = np.zeros((len(self._ids), 5), dtype=np.uint8)
-        self._goal_params[:, 0] = self._ids
-        self._goal_address = self.spec.item("Goal Position").address
+        self._write_groups = write_groups(self.specs, self._ids)
         self._writes_goals = False  # open and not read-only
-        self._raw = np.zeros((len(self._ids), len(self.layout.items)), dtype=np.int64)
+        self._raw = np.zeros((len(self._ids), len(STATE_BLOCK_ITEMS)), dtype=np.int64)
         self.devices: tuple[DeviceInfo, ...] = ()
         self.read_only = False
-        # Read-only on devices without the state-block map: the span read (see DirectStateSpan).
-        self._direct: DirectStateSpan | None = None
-        self._direct_columns = np.array(DirectStateSpan(self.spec).columns, dtype=np.intp)
+        # Read-only on devices without the state-block map: the span reads (DirectStateSpan).
+        self._direct = False
 
     # ----------------------------------------------------------------------------- properties
 
@@ -151,7 +158,7 @@ class DynamixelChain(SyncTransfer, TorqueControl):
             where=f"{self.config.port} at {self.config.baudrate} bps",
         )
         self.read_only = read_only
-        self._decoder = self.layout.decoder()
+        self._direct = False
         try:
             self._open_devices(self._io, allow_torque_off)
         except BaseException:
@@ -162,10 +169,10 @@ class DynamixelChain(SyncTransfer, TorqueControl):
         """Close the port. Does not change torque (the caller decides). Safe to call twice."""
         port, self._port = self._port, None
         self._io = None
-        self._sync_read = None
+        self._read_groups = []
         self._request_result = None
         self._writes_goals = False
-        self._direct = None
+        self._direct = False
         if port is not None and port.is_open:
             port.closePort()
 
@@ -212,22 +219,25 @@ class DynamixelChain(SyncTransfer, TorqueControl):
         return selected
 
     def _open_devices(self, io: DeviceIO, allow_torque_off: bool) -> None:
-        found = configure.identify(io, self._ids, self.spec)
+        found = configure.identify(io, self._spec_of)
         if not self.read_only:
             for dxl_id in self._ids:
-                configure.ensure_status_return_level(io, dxl_id, self.spec)
+                configure.ensure_status_return_level(io, dxl_id, self._spec_of[dxl_id])
         plans = {
-            joint.dxl_id: configure.eeprom_plan(io, joint, self.config, self.layout)
-            for joint in self._joints
+            joint.dxl_id: configure.eeprom_plan(io, joint, self.config, layout)
+            for joint, layout in zip(self._joints, self.layouts, strict=True)
         }
-        torque_item = self.spec.item("Torque Enable")
-        torque_on = {dxl_id: io.read_item(dxl_id, torque_item) != 0 for dxl_id in self._ids}
+        torque_on = {
+            dxl_id: io.read_item(dxl_id, self._spec_of[dxl_id].item("Torque Enable")) != 0
+            for dxl_id in self._ids
+        }
         if self.read_only:
-            map_start = self.layout.indirect_address_start
-            unmapped = any(w.address == map_start for plan in plans.values() for w in plan)
-            if unmapped:  # the map is an EEPROM write: read the plain span instead
-                self._direct = DirectStateSpan(self.spec)
-                self._decoder = self._direct.decoder()
+            # the map is an EEPROM write: where a device lacks it, read the plain spans instead
+            self._direct = any(
+                write.address == layout.indirect_address_start
+                for layout, joint in zip(self.layouts, self._joints, strict=True)
+                for write in plans[joint.dxl_id]
+            )
         else:
             self._configure(io, plans, torque_on, allow_torque_off)
         self._finish_open(io, found, plans, torque_on)
@@ -239,7 +249,6 @@ class DynamixelChain(SyncTransfer, TorqueControl):
         torque_on: dict[int, bool],
         allow_torque_off: bool,
     ) -> None:
-        torque_item = self.spec.item("Torque Enable")
         blocked = [dxl_id for dxl_id in self._ids if plans[dxl_id] and torque_on[dxl_id]]
         if blocked and not allow_torque_off:
             details = "; ".join(
@@ -257,11 +266,12 @@ class DynamixelChain(SyncTransfer, TorqueControl):
             if not plans[dxl_id]:
                 continue
             if torque_on[dxl_id]:
+                torque_item = self._spec_of[dxl_id].item("Torque Enable")
                 io.write_item(dxl_id, torque_item, 0)
                 torque_on[dxl_id] = io.read_item(dxl_id, torque_item) != 0
             configure.apply_eeprom_plan(io, dxl_id, plans[dxl_id])
         for joint in self._joints:
-            configure.apply_ram_settings(io, joint, self.spec)
+            configure.apply_ram_settings(io, joint, self._spec_of[joint.dxl_id])
 
     def _finish_open(
         self,
@@ -270,25 +280,30 @@ class DynamixelChain(SyncTransfer, TorqueControl):
         plans: dict[int, list[configure.EepromWrite]],
         torque_on: dict[int, bool],
     ) -> None:
-        shutdown_item = self.spec.item("Shutdown")
-        torque_limit_item = self.spec.item("Torque Limit")
+        spec_of = self._spec_of
         self.devices = tuple(
             DeviceInfo(
                 dxl_id=dxl_id,
                 model_number=found[dxl_id][0],
                 firmware_version=found[dxl_id][1],
-                shutdown_mask=io.read_item(dxl_id, shutdown_item),
+                shutdown_mask=io.read_item(dxl_id, spec_of[dxl_id].item("Shutdown")),
                 hardware_error=self.read_hardware_error(dxl_id).bits,
                 torque_enabled=torque_on[dxl_id],
                 eeprom_changes=tuple(write.description for write in plans[dxl_id]),
                 current_limit_a=current_limit_raw_to_a(
-                    io.read_item(dxl_id, torque_limit_item), self.spec.units
+                    io.read_item(dxl_id, spec_of[dxl_id].item("Torque Limit")),
+                    spec_of[dxl_id].units,
                 ),
+                model_name=spec_of[dxl_id].model_name,
             )
             for dxl_id in self._ids
         )
-        block = self.layout if self._direct is None else self._direct
-        self._sync_read = GroupSyncRead(io.port, self._packet, block.data_start, block.size)
+        blocks = (
+            [DirectStateSpan(spec) for spec in self.specs] if self._direct else list(self.layouts)
+        )
+        self._read_groups = read_groups(blocks, self._ids)
+        for group in self._read_groups:
+            group.sync_read = GroupSyncRead(io.port, self._packet, group.data_start, group.size)
+            for dxl_id in group.ids:
+                group.sync_read.addParam(dxl_id)
         self._writes_goals = True
-        for dxl_id in self._ids:
-            self._sync_read.addParam(dxl_id)

@@ -1,19 +1,20 @@
 """Bring-up of a chain at `open()`: identify every device, then configure only what differs.
 
-EEPROM items (address < 562 on the H54) are writable only while Torque Enable = 0 (e-Manual H54,
-"EEPROM Area" caution; otherwise Access Error 7), so they are planned first and written by the
-chain only once it knows the torque state. RAM items return to defaults on every reboot, so they
-are re-applied after `reboot()`.
+EEPROM items (address < 562 on the PRO, < 512 on PRO+) are writable only while Torque Enable = 0
+(e-Manual, every model's "EEPROM Area" caution; otherwise Access Error 7), so they are planned
+first and written by the chain only once it knows the torque state. RAM items return to defaults
+on every reboot, so they are re-applied after `reboot()`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from dynamixel_sdk import COMM_SUCCESS
 
 from drivers.dynamixel.config import DynamixelChainConfig, DynamixelJointConfig
-from drivers.dynamixel.control_table import ModelSpec, model_name
+from drivers.dynamixel.control_table import MODELS, ModelSpec, model_name
 from drivers.dynamixel.device_io import ERROR_NUMBER_MASK, DeviceIO, encode
 from drivers.dynamixel.state_block import StateBlockLayout
 from drivers.dynamixel.units import current_limit_a_to_raw, return_delay_us_to_raw
@@ -31,13 +32,14 @@ class EepromWrite:
     data: bytes
 
 
-def identify(io: DeviceIO, ids: tuple[int, ...], spec: ModelSpec) -> dict[int, tuple[int, int]]:
-    """PING every ID: {id: (model number, firmware version)}, or one error naming every problem
-    (missing ID, wrong model) with the port and baud, and a pointer to `hil scan`."""
+def identify(io: DeviceIO, specs: Mapping[int, ModelSpec]) -> dict[int, tuple[int, int]]:
+    """PING every ID of `specs` ({id: the model configured for it}): {id: (model number,
+    firmware version)}, or one error naming every problem (missing ID, wrong model) with the
+    port and baud, and a pointer to `hil scan`."""
     problems = []
     found = {}
-    expected = f"{spec.model_number} ({spec.model_name})"
-    for dxl_id in ids:
+    for dxl_id, spec in specs.items():
+        expected = f"{spec.model_number} ({spec.model_name})"
         model_number, result = io.ping(dxl_id)
         if result != COMM_SUCCESS:
             problems.append(
@@ -45,9 +47,15 @@ def identify(io: DeviceIO, ids: tuple[int, ...], spec: ModelSpec) -> dict[int, t
                 f"expected model {expected}"
             )
         elif model_number != spec.model_number:
+            found_name = model_name(model_number)
+            hint = (
+                f": configure this joint's model as {found_name!r}"
+                if model_number in MODELS
+                else ""
+            )
             problems.append(
-                f"{io.label(dxl_id)}: found model {model_number} ({model_name(model_number)}), "
-                f"expected {expected}"
+                f"{io.label(dxl_id)}: found model {model_number} ({found_name}), "
+                f"expected {expected}{hint}"
             )
         else:
             found[dxl_id] = (model_number, io.read_item(dxl_id, spec.item("Firmware Version")))
@@ -62,7 +70,8 @@ def identify(io: DeviceIO, ids: tuple[int, ...], spec: ModelSpec) -> dict[int, t
 
 
 def ensure_status_return_level(io: DeviceIO, dxl_id: int, spec: ModelSpec) -> None:
-    """Status Return Level (891, RAM) := 2, so that every instruction is answered.
+    """Status Return Level (RAM; 891 on the PRO, 516 on PRO+) := 2, so that every instruction
+    is answered.
 
     A device at level 0 or 1 executes the WRITE without answering it (one timeout); the READ
     that follows then confirms the new level (level 1 answers reads, and the write made it 2).

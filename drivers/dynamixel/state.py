@@ -63,7 +63,8 @@ class DeviceInfo:
     model_number: int
     firmware_version: int
     shutdown_mask: int  # Shutdown (48): which hardware errors turn torque off
-    hardware_error: int  # Hardware Error Status (892) at open
+    hardware_error: int  # Hardware Error Status at open
     torque_enabled: bool  # after open() (open never turns torque on)
     eeprom_changes: tuple[str, ...]  # e.g. "Operating Mode 4 -> 3" (read-only: still to do)
-    current_limit_a: float  # Torque Limit (30) after open(), in A: the servo's current cap
+    current_limit_a: float  # Torque Limit (PRO+: Current Limit) after open(), in A: the cap
+    model_name: str = ""  # the model it answered PING as (e-Manual name)

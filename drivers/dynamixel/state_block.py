@@ -1,16 +1,19 @@
 """The per-tick state block, gathered through indirect addressing into one contiguous read.
 
 Why: `GroupSyncRead` discards each device's status error byte (and with it the Alert bit 0x80),
-and the items the loop needs are scattered (Present Position 611 .. Hardware Error Status 892).
-Indirect Address n (49 + 2(n-1) on the H54, 2 bytes, EEPROM) holds the address of ONE byte that
-then reads at Indirect Data n (634 + (n-1)); a 4-byte item takes 4 consecutive entries (e-Manual
-H54, include control_table_49_indirectdata_pro; ROBOTIS-Framework packs its bulk reads the same
-way). So one SYNC_READ of the Indirect Data span returns, per device:
+and the items the loop needs are scattered (Present Position 611 .. Hardware Error Status 892 on
+the PRO). Indirect Address n (49 + 2(n-1) on the PRO, 168 + 2(n-1) on PRO+, 2 bytes, EEPROM)
+holds the address of ONE byte that then reads at Indirect Data n (634 + (n-1) on every model); a
+4-byte item takes 4 consecutive entries (e-Manual includes control_table_49_indirectdata_pro,
+p/control_table_168_indirect; ROBOTIS-Framework packs its bulk reads the same way). So one
+SYNC_READ of the Indirect Data span returns, per device of any model:
 
     Present Position (4) | Present Velocity (4) | Present Current (2) | Present Input Voltage (2)
     | Hardware Error Status (1) | Torque Enable (1) | Present Temperature (1)      = 15 bytes
 
-and the hardware error status and torque state reach the caller every tick.
+and the hardware error status and torque state reach the caller every tick. The block's
+address, size and layout are the same on every model, so a chain that mixes models still reads
+its whole state in one SYNC_READ.
 """
 
 from __future__ import annotations
@@ -96,32 +99,42 @@ class StateBlockLayout:
         return struct.Struct("<" + codes)
 
 
-# The state items that sit in one contiguous stretch of the H54's RAM (Torque Enable 562 ..
-# Present Temperature 625); Hardware Error Status (892) lies far beyond it.
-# Listed in address order.
-DIRECT_SPAN_ITEMS: tuple[str, ...] = (
-    "Torque Enable",
-    "Present Position",
-    "Present Velocity",
-    "Present Current",
-    "Present Input Voltage",
-    "Present Temperature",
-)
+# The state items that sit in one contiguous stretch of RAM, from Torque Enable to Present
+# Temperature: PRO 562..625 (Hardware Error Status, 892, lies far beyond it); PRO+ 512..594,
+# which holds Hardware Error Status (518) too.
+SPAN_FIRST, SPAN_LAST = "Torque Enable", "Present Temperature"
 
 
 @dataclass(frozen=True)
 class DirectStateSpan:
     """The state block read without the indirect map: one SYNC_READ of the contiguous span
     Torque Enable .. Present Temperature, for a chain opened read-only on devices that have no
-    state-block map yet (writing the map is an EEPROM write). Hardware Error Status is outside
-    the span: a device reports a latched error through the Alert bit of every status packet
-    (e-Manual Protocol 2.0, "Status Packet"), and only then is it read on its own."""
+    state-block map yet (writing the map is an EEPROM write). On the PRO, Hardware Error Status
+    is outside the span: a device reports a latched error through the Alert bit of every status
+    packet (e-Manual Protocol 2.0, "Status Packet"), and only then is it read on its own; on
+    PRO+ the span holds it (`reads_hardware_error`)."""
 
     spec: ModelSpec
 
     @property
+    def names(self) -> tuple[str, ...]:
+        """The state items inside the span, in address order."""
+        low = self.spec.item(SPAN_FIRST).address
+        last = self.spec.item(SPAN_LAST)
+        inside = [
+            name
+            for name in STATE_BLOCK_ITEMS
+            if low <= self.spec.item(name).address < last.address + last.size
+        ]
+        return tuple(sorted(inside, key=lambda name: self.spec.item(name).address))
+
+    @property
     def items(self) -> tuple[ControlItem, ...]:
-        return tuple(self.spec.item(name) for name in DIRECT_SPAN_ITEMS)
+        return tuple(self.spec.item(name) for name in self.names)
+
+    @property
+    def reads_hardware_error(self) -> bool:
+        return "Hardware Error Status" in self.names
 
     @property
     def data_start(self) -> int:
@@ -134,15 +147,13 @@ class DirectStateSpan:
     @property
     def columns(self) -> tuple[int, ...]:
         """Where each decoded value goes in a row of STATE_BLOCK_ITEMS."""
-        return tuple(STATE_BLOCK_ITEMS.index(name) for name in DIRECT_SPAN_ITEMS)
+        return tuple(STATE_BLOCK_ITEMS.index(name) for name in self.names)
 
     def decoder(self) -> struct.Struct:
-        """Unpacks the span into the values of DIRECT_SPAN_ITEMS (in that order: the items are
-        placed by address with pad bytes between them)."""
+        """Unpacks the span into the values of `names` (in that order: the items are placed by
+        address with pad bytes between them)."""
         codes, cursor = "", self.data_start
         for item in self.items:
-            if item.address < cursor:
-                raise ValueError("DIRECT_SPAN_ITEMS must be listed in address order")
             codes += "x" * (item.address - cursor) + _STRUCT_CODES[(item.size, item.signed)]
             cursor = item.address + item.size
         return struct.Struct("<" + codes)

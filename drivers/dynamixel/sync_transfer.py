@@ -1,7 +1,8 @@
 """The 200 Hz path of a `DynamixelChain`: one SYNC_READ of the state block in, one SYNC_WRITE of
-Goal Position (596, 4 bytes) out, and the state block decoded into SI units.
+Goal Position (4 bytes) out, and the state block decoded into SI units, each device in its own
+model's units (a chain that mixes layouts: one transaction per group, `transfer_groups.py`).
 
-Protocol facts (ROBOTIS e-Manual, Protocol 2.0 and H54-200-S500-R pages):
+Protocol facts (ROBOTIS e-Manual, Protocol 2.0 and the models' pages):
 - A SYNC_WRITE gets no reply: a goal outside Min/Max Position Limit (40/36) would be dropped
   with a Data Limit error nobody sees, so goals are checked here before sending.
 - In a SYNC_READ the devices answer in the order listed; if one stays silent the ones after it
@@ -21,9 +22,10 @@ from __future__ import annotations
 import numpy as np
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS
 
-from drivers.dynamixel.device_io import ERRBIT_ALERT, ERROR_NUMBER_MASK
+from drivers.dynamixel.device_io import ERRBIT_ALERT, ERROR_NUMBER_MASK, DeviceIO
 from drivers.dynamixel.state import DynamixelState
 from drivers.dynamixel.state_block import STATE_BLOCK_ITEMS
+from drivers.dynamixel.transfer_groups import ReadGroup
 from drivers.dynamixel.units import (
     current_a_to_torque_estimate_nm,
     current_to_a,
@@ -64,11 +66,12 @@ class SyncTransfer:
         return self.receive_state()
 
     def request_state(self) -> None:
-        """Send the SYNC_READ and return at once: the replies travel (wire time, Return Delay
-        Time, the adapter's latency timer) while the caller does other work;
-        `receive_state()` collects them. The reply timeout runs from here."""
+        """Send the (first) SYNC_READ and return at once: the replies travel (wire time, Return
+        Delay Time, the adapter's latency timer) while the caller does other work;
+        `receive_state()` collects them. The reply timeout runs from here. (A chain that needs
+        more than one sync read, `transfer_groups.py`, sends the others in `receive_state`.)"""
         self._settle()
-        sync_read = self._sync_read
+        sync_read = self._read_groups[0].sync_read
         assert sync_read is not None
         self._request_result = sync_read.txPacket()
 
@@ -83,19 +86,38 @@ class SyncTransfer:
         alert = np.zeros(len(self._ids), dtype=bool)
         errors: list[str] = []
         reasons: dict[int, str] = {}  # why a device's entry is invalid, by ID
+        for number, group in enumerate(self._read_groups):
+            if number:
+                assert group.sync_read is not None
+                result = group.sync_read.txPacket()
+            self._collect(io, group, result, raw, valid, alert, errors, reasons)
+        return self._state_from_raw(raw, valid, alert, errors, reasons)
+
+    def _collect(
+        self,
+        io: DeviceIO,
+        group: ReadGroup,
+        result: int,
+        raw: np.ndarray,
+        valid: np.ndarray,
+        alert: np.ndarray,
+        errors: list[str],
+        reasons: dict[int, str],
+    ) -> None:
+        """One sync read's replies into the state arrays (see the module docstring)."""
         if result != COMM_SUCCESS:
             reason = f"sync read not sent: {self._packet.getTxRxResult(result)}"
             errors.append(reason)
-            reasons.update(dict.fromkeys(self._ids, reason))
-            return self._state_from_raw(raw, valid, alert, errors, reasons)
-        size = self._block_size if self._direct is None else self._direct.size
-        expected_length = size + 4  # LEN field: INST + ERR + data + CRC(2)
-        pending = dict(self._index_of)
+            reasons.update(dict.fromkeys(group.ids, reason))
+            return
+        expected_length = group.expected_length
+        decoder, columns = group.decoder, group.columns
+        pending = {dxl_id: self._index_of[dxl_id] for dxl_id in group.ids}
         corrupt = 0
         # Replies are matched by ID, so one lost or corrupted reply does not also cost the
         # (valid) replies after it. Each rxPacket call either consumes bytes or reports the
         # group's timeout, so the loop ends; the bound guards against a babbling line.
-        for _ in range(2 * len(self._ids) + 2):
+        for _ in range(2 * len(group.ids) + 2):
             packet, result = self._packet.rxPacket(io.port, False)
             if result == COMM_RX_TIMEOUT:
                 break
@@ -120,28 +142,27 @@ class SyncTransfer:
                 errors.append(f"{io.label(dxl_id)}: {reason}")
                 reasons[dxl_id] = reason
             else:
-                if self._direct is None:
-                    raw[index] = self._decoder.unpack_from(bytes(packet), PKT_DATA)
+                if columns is None:
+                    raw[index] = decoder.unpack_from(bytes(packet), PKT_DATA)
                 else:
-                    raw[index, self._direct_columns] = self._decoder.unpack_from(
-                        bytes(packet), PKT_DATA
-                    )
-                    raw[index, _HW_ERROR] = 0  # read below if the Alert bit says there is one
+                    raw[index, columns] = decoder.unpack_from(bytes(packet), PKT_DATA)
+                    if not group.reads_hardware_error:
+                        raw[index, _HW_ERROR] = 0  # read below if the Alert bit says there is one
                 valid[index] = True
                 alert[index] = bool(error & ERRBIT_ALERT)
             if not pending:
                 break
-        if self._direct is not None:
-            self._read_alerted_errors(raw, valid & alert, errors)
+        if not group.reads_hardware_error:
+            self._read_alerted_errors(raw, group.indices, valid & alert, errors)
         if pending:
             why = f"{corrupt} corrupt reply(s) received" if corrupt else "timeout"
             for dxl_id in pending:
                 reasons[dxl_id] = f"no valid sync-read reply ({why})"
                 errors.append(f"{io.label(dxl_id)}: {reasons[dxl_id]}")
-        return self._state_from_raw(raw, valid, alert, errors, reasons)
 
     def write_goals(self, goal_rad: np.ndarray) -> None:
-        """One SYNC_WRITE of Goal Position for every joint (chain order, joint frame, rad).
+        """One SYNC_WRITE of Goal Position for every joint (chain order, joint frame, rad); one
+        per Goal Position address on a chain that mixes the PRO and PRO+ layouts.
 
         Raises ValueError BEFORE sending anything if a goal is not finite or outside its joint's
         [min_position_rad, max_position_rad]: a sync write has no reply, so the device's Data
@@ -166,22 +187,27 @@ class SyncTransfer:
             )
             raise ValueError(f"goal position refused, nothing sent: {details}")
         pulses = rad_to_position(goal, self.units, self._direction, self._offset_rad)
-        params = self._goal_params  # the goals as little-endian INT32s after each ID
-        params[:, 1:] = pulses.astype("<i4").view(np.uint8).reshape(len(self._ids), 4)
-        result = self._packet.syncWriteTxOnly(
-            io.port, self._goal_address, 4, params.ravel().tolist(), params.size
-        )
-        if result != COMM_SUCCESS:
-            raise BusError(
-                f"sync write of Goal Position on {self.config.port} failed: "
-                f"{self._packet.getTxRxResult(result)}"
+        wire = pulses.astype("<i4").view(np.uint8).reshape(len(self._ids), 4)
+        for group in self._write_groups:
+            params = group.params  # the goals as little-endian INT32s after each ID
+            params[:, 1:] = wire if len(self._write_groups) == 1 else wire[group.indices]
+            result = self._packet.syncWriteTxOnly(
+                io.port, group.address, 4, params.ravel().tolist(), params.size
             )
+            if result != COMM_SUCCESS:
+                raise BusError(
+                    f"sync write of Goal Position on {self.config.port} failed: "
+                    f"{self._packet.getTxRxResult(result)}"
+                )
 
-    def _read_alerted_errors(self, raw: np.ndarray, alerted: np.ndarray, errors: list[str]) -> None:
-        """Span reads only: Hardware Error Status of each device whose reply carried the Alert
-        bit (one READ each; none while every device is healthy)."""
+    def _read_alerted_errors(
+        self, raw: np.ndarray, indices: np.ndarray, alerted: np.ndarray, errors: list[str]
+    ) -> None:
+        """Span reads without Hardware Error Status only: that item of each device of the group
+        (`indices`) whose reply carried the Alert bit (one READ each; none while all are
+        healthy)."""
         io = self._require_io()
-        for index in np.flatnonzero(alerted):
+        for index in indices[alerted[indices]]:
             dxl_id = self._ids[index]
             try:
                 raw[index, _HW_ERROR] = self.read_hardware_error(dxl_id).bits

@@ -1,9 +1,10 @@
 """Torque on and off, REBOOT and the hardware error status of the devices of a `DynamixelChain`.
 
-Protocol fact (ROBOTIS e-Manual, H54-200-S500-R): a hardware error whose bit is set in Shutdown
-(48) clears Torque Enable (562), sets the Alert bit in every status packet and latches Hardware
-Error Status (892); only a REBOOT (0x08) clears it. So `enable()` checks the status first and
-says when a REBOOT is needed, and `reboot()` re-applies the RAM settings a reboot resets.
+Protocol fact (ROBOTIS e-Manual, every PRO model): a hardware error whose bit is set in Shutdown
+(PRO 48, PRO+ 63) clears Torque Enable (562 / 512), sets the Alert bit in every status packet and
+latches Hardware Error Status (892 / 518); only a REBOOT (0x08) clears it. So `enable()` checks
+the status first and says when a REBOOT is needed, and `reboot()` re-applies the RAM settings a
+reboot resets.
 """
 
 from __future__ import annotations
@@ -56,14 +57,16 @@ class TorqueControl:
                 f"reboot({sorted(faulty)}).",
                 hardware_errors=faulty,
             )
-        present_item = self.spec.item("Present Position")
-        present = {dxl_id: io.read_item(dxl_id, present_item) for dxl_id in targets}
+        spec_of = self._spec_of
+        present = {
+            dxl_id: io.read_item(dxl_id, spec_of[dxl_id].item("Present Position"))
+            for dxl_id in targets
+        }
         for dxl_id in targets:
             self._check_inside_limits(dxl_id, present[dxl_id])
-        goal_item = self.spec.item("Goal Position")
-        torque_item = self.spec.item("Torque Enable")
         for dxl_id in targets:
-            io.write_item(dxl_id, goal_item, present[dxl_id])
+            torque_item = spec_of[dxl_id].item("Torque Enable")
+            io.write_item(dxl_id, spec_of[dxl_id].item("Goal Position"), present[dxl_id])
             try:
                 io.write_item(dxl_id, torque_item, 1)
             except DynamixelReplyError as exc:
@@ -97,8 +100,8 @@ class TorqueControl:
             raise self._torque_off_lost(io, io.port.gone_error("write"), [], targets)
         failures = []
         confirmed: list[int] = []
-        torque_item = self.spec.item("Torque Enable")
         for position, dxl_id in enumerate(targets):
+            torque_item = self._spec_of[dxl_id].item("Torque Enable")
             try:
                 io.write_item(dxl_id, torque_item, 0)
                 if io.read_item(dxl_id, torque_item) != 0:
@@ -170,14 +173,15 @@ class TorqueControl:
                 )
             time.sleep(REBOOT_POLL_INTERVAL_S)
         for dxl_id in targets:
-            configure.apply_ram_settings(io, self._joints[self._index_of[dxl_id]], self.spec)
+            joint = self._joints[self._index_of[dxl_id]]
+            configure.apply_ram_settings(io, joint, self._spec_of[dxl_id])
         return {dxl_id: self.read_hardware_error(dxl_id) for dxl_id in targets}
 
     def read_hardware_error(self, dxl_id: int) -> HardwareErrorStatus:
-        """A single READ of Hardware Error Status (892), with the Alert bit of that reply."""
+        """A single READ of Hardware Error Status, with the Alert bit of that reply."""
         io = self._settle()
         self._select([dxl_id])
-        item = self.spec.item("Hardware Error Status")
+        item = self._spec_of[dxl_id].item("Hardware Error Status")
         data, alert = io.read_bytes_with_alert(dxl_id, item.address, item.size, f"read {item.name}")
         return HardwareErrorStatus(dxl_id, data[0], alert)
 
@@ -186,10 +190,9 @@ class TorqueControl:
         if low <= present_pulses <= high:
             return
         index = self._index_of[dxl_id]
+        units = self._spec_of[dxl_id].units
         angle = float(
-            position_to_rad(
-                present_pulses, self.units, self._direction[index], self._offset_rad[index]
-            )
+            position_to_rad(present_pulses, units, self._direction[index], self._offset_rad[index])
         )
         raise BusError(
             f"cannot enable torque on {self._labels[dxl_id]}: its position {angle:.4f} rad is "

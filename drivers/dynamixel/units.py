@@ -11,9 +11,10 @@ driver. Per joint, two configuration values are applied here too:
 
 Velocity, current and torque are only signed by ``direction`` (an offset has no meaning there).
 
-Figures for the H54-200-S500-R (model 54024) come from the ROBOTIS e-Manual page of the actuator
-(https://emanual.robotis.com/docs/en/dxl/pro/h54-200-s500-r/) and its control-table includes
-(Goal Position 596, Goal Velocity 600, Goal Torque 604).
+Each model's figures come from its e-Manual page (drivers/dynamixel/models.py says which item
+of the page): `units_of(model)`. A chain of several models converts with `ChainUnits`, the
+same factors as arrays, one entry per joint (each its model's), so the functions below convert
+a mixed chain in one call.
 
 The functions accept scalars or numpy arrays (direction and offset broadcast per joint).
 """
@@ -25,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+
+from drivers.dynamixel.models import ACTUATOR_MODELS, ActuatorModel
 
 ArrayLike = npt.ArrayLike
 FloatArray = npt.NDArray[np.float64]
@@ -57,21 +60,53 @@ class DeviceUnits:
         return self.velocity_unit_rpm * 2.0 * math.pi / 60.0
 
 
-H54_200_S500_R_UNITS = DeviceUnits(
-    # e-Manual spec table "Resolution: 501,923 pulse/rev"; Goal Position include: range
-    # -250,961 .. 250,961 (-179.999 deg .. 179.999 deg) in position mode.
-    pulses_per_rev=501_923,
-    position_limit_pulses=250_961,
-    # Goal Velocity include: "0.00199234 rpm" per unit (1 motor rpm / gear ratio 501.923).
-    velocity_unit_rpm=0.00199234,
-    # Goal Torque include, "PRO 54": Current [mA] = value x 33,000 / 2,048 = 16.11328 mA.
-    current_unit_a=33.0 / 2048.0,
-    # ESTIMATE: e-Manual spec table, continuous torque 44.7 N m at continuous current 9.3 A
-    # ("calculated from core motor spec") -> 4.806 N m/A. Friction and the gear's efficiency
-    # make the real ratio load dependent; ROBOTIS-Framework uses a different figure
-    # (6.8 N m/A, unverified). Use it for plots and sanity checks, not as a torque sensor.
-    torque_constant_nm_per_a=44.7 / 9.3,
-)
+def units_of(model: ActuatorModel) -> DeviceUnits:
+    """A model's units from its row of drivers/dynamixel/models.py.
+
+    The torque constant is an ESTIMATE: the spec table's continuous torque over continuous
+    current ("calculated from core motor spec"; 44.7 N m / 9.3 A = 4.806 N m/A on the
+    H54-200-S500-R). Friction and the gear's efficiency make the real ratio load dependent;
+    ROBOTIS-Framework uses a different figure for the H54-200 (6.8 N m/A, unverified). Use it for
+    plots and sanity checks, not as a torque sensor."""
+    return DeviceUnits(
+        pulses_per_rev=model.pulses_per_rev,
+        position_limit_pulses=model.position_limit_pulses,
+        velocity_unit_rpm=model.velocity_unit_rpm,
+        current_unit_a=model.current_unit_a,
+        torque_constant_nm_per_a=model.continuous_torque_nm / model.continuous_current_a,
+    )
+
+
+# The H54-200-S500-R (model 54024): 501,923 pulse/rev, +-250,961 in position mode, 0.00199234
+# rev/min and 16.11328 mA per unit.
+H54_200_S500_R_UNITS = units_of(ACTUATOR_MODELS[54024])
+
+
+@dataclass(frozen=True)
+class ChainUnits:
+    """The factors of `DeviceUnits` for a chain, one entry per joint (each its model's): what
+    the conversions below take in place of one model's units."""
+
+    rad_per_pulse: FloatArray
+    rad_s_per_velocity_unit: FloatArray
+    current_unit_a: FloatArray
+    torque_constant_nm_per_a: FloatArray
+
+    @classmethod
+    def of(cls, per_joint: tuple[DeviceUnits, ...]) -> ChainUnits:
+        def column(name: str) -> FloatArray:
+            return np.array([getattr(units, name) for units in per_joint], dtype=np.float64)
+
+        return cls(
+            rad_per_pulse=column("rad_per_pulse"),
+            rad_s_per_velocity_unit=column("rad_s_per_velocity_unit"),
+            current_unit_a=column("current_unit_a"),
+            torque_constant_nm_per_a=column("torque_constant_nm_per_a"),
+        )
+
+
+# One model's units, or a chain's (per joint): what the array conversions accept.
+Units = DeviceUnits | ChainUnits
 
 
 def to_signed(raw_value: int, size_bytes: int) -> int:
@@ -87,7 +122,7 @@ def to_signed(raw_value: int, size_bytes: int) -> int:
 
 
 def position_to_rad(
-    pulses: ArrayLike, units: DeviceUnits, direction: ArrayLike = 1, offset_rad: ArrayLike = 0.0
+    pulses: ArrayLike, units: Units, direction: ArrayLike = 1, offset_rad: ArrayLike = 0.0
 ) -> FloatArray:
     """Present Position pulses (signed) -> joint angle [rad]."""
     device_rad = np.asarray(pulses, dtype=np.float64) * units.rad_per_pulse
@@ -95,7 +130,7 @@ def position_to_rad(
 
 
 def rad_to_position(
-    angle_rad: ArrayLike, units: DeviceUnits, direction: ArrayLike = 1, offset_rad: ArrayLike = 0.0
+    angle_rad: ArrayLike, units: Units, direction: ArrayLike = 1, offset_rad: ArrayLike = 0.0
 ) -> IntArray:
     """Joint angle [rad] -> Goal Position pulses (nearest pulse, signed int64).
 
@@ -107,23 +142,23 @@ def rad_to_position(
     return np.rint(device_rad / units.rad_per_pulse).astype(np.int64)
 
 
-def velocity_to_rad_s(raw: ArrayLike, units: DeviceUnits, direction: ArrayLike = 1) -> FloatArray:
-    """Present Velocity units (signed, 0.00199234 rpm on the H54) -> joint velocity [rad/s]."""
+def velocity_to_rad_s(raw: ArrayLike, units: Units, direction: ArrayLike = 1) -> FloatArray:
+    """Present Velocity units (signed; 0.00199234 rpm on the H54-200) -> joint velocity [rad/s]."""
     return np.asarray(direction) * (
         np.asarray(raw, dtype=np.float64) * units.rad_s_per_velocity_unit
     )
 
 
 def rad_s_to_velocity(
-    velocity_rad_s: ArrayLike, units: DeviceUnits, direction: ArrayLike = 1
+    velocity_rad_s: ArrayLike, units: Units, direction: ArrayLike = 1
 ) -> IntArray:
     """Joint velocity [rad/s] -> Goal Velocity units (nearest unit, signed int64)."""
     device_rad_s = np.asarray(direction) * np.asarray(velocity_rad_s, dtype=np.float64)
     return np.rint(device_rad_s / units.rad_s_per_velocity_unit).astype(np.int64)
 
 
-def current_to_a(raw: ArrayLike, units: DeviceUnits, direction: ArrayLike = 1) -> FloatArray:
-    """Present Current units (signed, 16.11328 mA on the H54) -> joint-frame current [A]."""
+def current_to_a(raw: ArrayLike, units: Units, direction: ArrayLike = 1) -> FloatArray:
+    """Present Current units (signed; 16.11328 mA on the H54-200) -> joint-frame current [A]."""
     return np.asarray(direction) * (np.asarray(raw, dtype=np.float64) * units.current_unit_a)
 
 
@@ -139,7 +174,7 @@ def current_limit_raw_to_a(raw: int, units: DeviceUnits) -> float:
     return raw * units.current_unit_a
 
 
-def current_a_to_torque_estimate_nm(current_a: ArrayLike, units: DeviceUnits) -> FloatArray:
+def current_a_to_torque_estimate_nm(current_a: ArrayLike, units: Units) -> FloatArray:
     """Motor current [A] -> ESTIMATED output torque [N m] via the spec torque constant.
 
     Only an estimate: see `DeviceUnits.torque_constant_nm_per_a`. The sign follows the current
@@ -149,7 +184,7 @@ def current_a_to_torque_estimate_nm(current_a: ArrayLike, units: DeviceUnits) ->
 
 
 def return_delay_us_to_raw(return_delay_us: int) -> int:
-    """Return Delay Time [us] -> item 9 value (unit 2 us, 0..254; e-Manual H54 item 9)."""
+    """Return Delay Time [us] -> item 9 value (unit 2 us, 0..254; the same item on every model)."""
     if return_delay_us % 2 or not 0 <= return_delay_us <= 508:
         raise ValueError(
             f"return delay time must be an even number of microseconds in 0..508 "

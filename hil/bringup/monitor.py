@@ -54,6 +54,7 @@ class JointStatus:
     """One joint at one read, SI units (NaN: not read), and what is wrong with it."""
 
     name: str
+    actuator: str  # its actuator's model (the configuration's; open() checked it by PING)
     motor_angle_rad: float
     link_angle_rad: float
     deflection_rad: float
@@ -129,6 +130,7 @@ def assess(
         joints.append(
             JointStatus(
                 name=joint.name,
+                actuator=config.actuator_of(joint),
                 motor_angle_rad=motor,
                 link_angle_rad=link,
                 deflection_rad=float(deflection[i]),

@@ -1,4 +1,5 @@
-"""`hil scan` and `hil reboot`: the Dynamixel devices on a port, and clearing their faults."""
+"""`hil scan` and `hil reboot`: the Dynamixel devices on a port (each ID with its model, as it
+answers PING: a chain may mix models), and clearing their faults."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ SCAN_BAUDRATES = (3_000_000, 4_000_000, 1_000_000, 2_000_000, 57_600, 115_200, 9
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
-    from drivers.dynamixel import ScanProgress, scan
+    from drivers.dynamixel import MODELS, ScanProgress, scan
     from drivers.dynamixel.port import sdk_accepts_baudrate
     from drivers.joint_bus import BusError
 
@@ -54,6 +55,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
                         "id": device.dxl_id,
                         "model_number": device.model_number,
                         "model": device.model_name,
+                        "supported": device.model_number in MODELS,  # the driver drives it
                         "firmware": device.firmware_version,
                         "baudrate": baud,
                     }

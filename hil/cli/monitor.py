@@ -25,6 +25,7 @@ MAX_RATE_HZ = 200.0
 
 _COLUMNS = (
     ("joint", 10),
+    ("actuator", 17),
     ("motor rad", 10),
     ("link rad", 10),
     ("defl mrad", 9),
@@ -47,6 +48,7 @@ def _row(joint: JointStatus) -> str:
     age_ms = joint.link_age_s * 1e3
     cells = (
         joint.name,
+        joint.actuator,
         _number(joint.motor_angle_rad, 5),
         _number(joint.link_angle_rad, 5),
         _number(joint.deflection_rad * 1e3, 2),

@@ -64,7 +64,8 @@ class LoopSection(Section):
 
 
 class DynamixelSection(Section):
-    """One RS-485 port with a chain of actuators of one model."""
+    """One RS-485 port with a chain of actuators; `model` is its joints' model where a joint
+    names none (`[[joint]] actuator`), an e-Manual name of the DYNAMIXEL PRO family."""
 
     name: str = Field("dynamixel", min_length=1)
     port: str = ""
@@ -122,6 +123,9 @@ class JointSection(Section):
     name: str = Field(min_length=1)
     dynamixel_id: int
     dynamixel: str | None = None  # the chain it is on (None: the only one)
+    # its actuator's model, an e-Manual name ("H54-100-S500-R", "H42-20-S300-R(A)", docs/
+    # actuators.md); None: its chain's `model`. The driver checks it (and PING) at open.
+    actuator: str | None = Field(None, min_length=1)
     encoder_node_id: int
     can: str | None = None  # the CAN channel of its encoder (None: the only one)
     # None: the driver's RLC2IC figure. From 4096 (1.5 mrad a count, half the testbed's static
@@ -380,6 +384,11 @@ class ConfigFile(Section):
 
     def chain_of(self, joint: JointSection) -> str:
         return joint.dynamixel or self.dynamixel[0].name
+
+    def actuator_of(self, joint: JointSection) -> str:
+        """The joint's actuator model: its own `actuator`, else its chain's `model`."""
+        chain = self.chain_of(joint)
+        return joint.actuator or next(d.model for d in self.dynamixel if d.name == chain)
 
     def channel_of(self, device: JointSection | ForceTorqueSensorSection) -> str:
         return device.can or self.can[0].name

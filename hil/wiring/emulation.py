@@ -178,6 +178,7 @@ def emulator_spec(
             encoder_offset_rad=j.encoder_offset_rad,
             motor_direction=j.motor_direction,
             motor_offset_rad=j.motor_offset_rad,
+            model=config.actuator_of(j),
         )
         for j in config.joints
     )

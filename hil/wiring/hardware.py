@@ -60,12 +60,24 @@ def _latency_timer_ms(configured: float, connection: Connection) -> float:
     return configured
 
 
+def _model_number(name: str, key: str) -> int:
+    try:
+        return model_number(name)
+    except ValueError as exc:
+        raise ValueError(f"{key}: {exc}") from None
+
+
 def _chain_config(config: Config, chain: str, connection: Connection) -> DynamixelChainConfig:
     section = next(d for d in config.dynamixel if d.name == chain)
     endpoint = connection.dynamixel[chain]
     joints = tuple(
         DynamixelJointConfig(
             dxl_id=j.dynamixel_id,
+            model_number=(
+                None
+                if j.actuator is None
+                else _model_number(j.actuator, f"[[joint]] {j.name!r} actuator")
+            ),
             direction=j.motor_direction,
             offset_rad=j.motor_offset_rad,
             min_position_rad=j.min_angle_rad,
@@ -83,7 +95,7 @@ def _chain_config(config: Config, chain: str, connection: Connection) -> Dynamix
         port=endpoint.port,
         baudrate=endpoint.baudrate,
         joints=joints,
-        model_number=model_number(section.model),
+        model_number=_model_number(section.model, f"[[dynamixel]] {section.name!r} model"),
         return_delay_time_us=section.return_delay_time_us,
         latency_timer_ms=_latency_timer_ms(section.latency_timer_ms, connection),
     )

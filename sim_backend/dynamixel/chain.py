@@ -1,4 +1,4 @@
-"""Several H54 devices on one RS-485 line: who executes an instruction, who answers, and when.
+"""Several PRO devices on one RS-485 line: who executes an instruction, who answers, and when.
 
 Line semantics (ROBOTIS e-Manual "Protocol 2.0"):
 - Unicast (ID 0..252): the device(s) with that ID execute; the reply obeys Status Return Level.
@@ -35,7 +35,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from functools import partial
 
-from sim_backend.dynamixel.device import FACTORY_RESET_ALL, H54Device
+from sim_backend.dynamixel.device import FACTORY_RESET_ALL, DynamixelProDevice
 from sim_backend.dynamixel.faults import LineFaults
 from sim_backend.dynamixel.protocol import (
     BROADCAST_ID,
@@ -61,7 +61,9 @@ class _ReplySchedule:
         self.faults = faults
         self.replies: list[Reply] = []
 
-    def add(self, device: H54Device, reply_id: int, error: int, params: bytes = b"") -> None:
+    def add(
+        self, device: DynamixelProDevice, reply_id: int, error: int, params: bytes = b""
+    ) -> None:
         packet = build_status_packet(reply_id, device.status_error(error), params)
         baud = self.line_baud_bps or device.baud_bps
         self.cursor_s += device.return_delay_s + wire_time_s(len(packet), baud)
@@ -79,12 +81,12 @@ class DynamixelChain:
 
     def __init__(
         self,
-        devices: Iterable[H54Device],
+        devices: Iterable[DynamixelProDevice],
         *,
         faults: LineFaults | None = None,
         enforce_baud: bool = False,
     ) -> None:
-        self.devices: tuple[H54Device, ...] = tuple(devices)
+        self.devices: tuple[DynamixelProDevice, ...] = tuple(devices)
         ids = [device.dxl_id for device in self.devices]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
@@ -93,7 +95,7 @@ class DynamixelChain:
         self.enforce_baud = enforce_baud
         self._tick_listeners: list[Callable[[float], None]] = []
 
-    def device(self, dxl_id: int) -> H54Device:
+    def device(self, dxl_id: int) -> DynamixelProDevice:
         """The device that currently has ID `dxl_id` (KeyError if none)."""
         for device in self.devices:
             if device.dxl_id == dxl_id:
@@ -146,7 +148,7 @@ class DynamixelChain:
 
     # ---------------------------------------------------------------- internals
 
-    def _hears(self, device: H54Device, now_s: float, line_baud_bps: int | None) -> bool:
+    def _hears(self, device: DynamixelProDevice, now_s: float, line_baud_bps: int | None) -> bool:
         if not device.available(now_s) or device.dxl_id in self.faults.silent_ids:
             return False
         if self.enforce_baud and line_baud_bps is not None:
@@ -154,7 +156,11 @@ class DynamixelChain:
         return True
 
     def _unicast(
-        self, packet: ParsedPacket, device: H54Device, schedule: _ReplySchedule, now_s: float
+        self,
+        packet: ParsedPacket,
+        device: DynamixelProDevice,
+        schedule: _ReplySchedule,
+        now_s: float,
     ) -> None:
         instruction = packet.instruction
         reply_id = packet.packet_id
@@ -201,7 +207,7 @@ class DynamixelChain:
     def _broadcast(
         self,
         packet: ParsedPacket,
-        hearing: list[H54Device],
+        hearing: list[DynamixelProDevice],
         schedule: _ReplySchedule,
         now_s: float,
     ) -> None:
@@ -238,13 +244,17 @@ class DynamixelChain:
         # READ, FAST_SYNC_READ, FAST_BULK_READ and unknown instructions: nothing happens.
 
     @staticmethod
-    def _answering(by_id: dict[int, H54Device], dxl_id: int, instruction: int) -> H54Device | None:
+    def _answering(
+        by_id: dict[int, DynamixelProDevice], dxl_id: int, instruction: int
+    ) -> DynamixelProDevice | None:
         device = by_id.get(dxl_id)
         if device is not None and device.replies_to(instruction):
             return device
         return None
 
-    def _sync_read(self, params: bytes, hearing: list[H54Device], schedule: _ReplySchedule) -> None:
+    def _sync_read(
+        self, params: bytes, hearing: list[DynamixelProDevice], schedule: _ReplySchedule
+    ) -> None:
         if len(params) < 4:
             return
         address, length = _u16(params, 0), _u16(params, 2)
@@ -256,7 +266,9 @@ class DynamixelChain:
             error, data = device.read(address, length)
             schedule.add(device, dxl_id, error, data)
 
-    def _bulk_read(self, params: bytes, hearing: list[H54Device], schedule: _ReplySchedule) -> None:
+    def _bulk_read(
+        self, params: bytes, hearing: list[DynamixelProDevice], schedule: _ReplySchedule
+    ) -> None:
         if not params or len(params) % 5:
             return
         by_id = {device.dxl_id: device for device in hearing}
@@ -269,7 +281,7 @@ class DynamixelChain:
             schedule.add(device, dxl_id, error, data)
 
     @staticmethod
-    def _sync_write(params: bytes, hearing: list[H54Device]) -> None:
+    def _sync_write(params: bytes, hearing: list[DynamixelProDevice]) -> None:
         if len(params) < 4:
             return
         address, length = _u16(params, 0), _u16(params, 2)
@@ -283,7 +295,7 @@ class DynamixelChain:
                 device.write(address, body[offset + 1 : offset + 1 + length])
 
     @staticmethod
-    def _bulk_write(params: bytes, hearing: list[H54Device]) -> None:
+    def _bulk_write(params: bytes, hearing: list[DynamixelProDevice]) -> None:
         entries: list[tuple[int, int, bytes]] = []
         offset = 0
         while offset < len(params):

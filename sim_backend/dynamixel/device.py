@@ -1,4 +1,5 @@
-"""One emulated Dynamixel Pro H54-200-S500-R: its control table and instruction semantics.
+"""One emulated DYNAMIXEL PRO of any model of the family: its control table and instruction
+semantics (the model's table and figures: control_table.py, models.py).
 
 Two faces:
 - the protocol face (`ping`, `read`, `write`, `reg_write`, `action`, `reboot`, `factory_reset`,
@@ -19,28 +20,24 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 from sim_backend.dynamixel.control_table import (
-    BAUD_RATE_BPS,
     FACTORY_BAUD_INDEX,
-    H54_LAYOUT,
     HARDWARE_ERROR_BITS_MASK,
-    INDIRECT_ADDRESS_BASE,
-    INDIRECT_DATA_BASE,
     RETURN_DELAY_UNIT_S,
     Access,
     Area,
     ControlItem,
     ControlTableLayout,
+    DeviceModel,
+    device_model,
 )
 from sim_backend.dynamixel.instructions import (
     FACTORY_RESET_ALL,
     FACTORY_RESET_ALL_BUT_ID,
     FACTORY_RESET_ALL_BUT_ID_AND_BAUD,
-    INDIRECT_ADDRESS_END,
-    INDIRECT_DATA_END,
     Bound,
     InstructionSemantics,
 )
-from sim_backend.servo import WriteCounter
+from sim_backend.dynamixel.models import DEFAULT_MODEL
 
 __all__ = [
     "DEFAULT_FIRMWARE_VERSION",
@@ -48,11 +45,12 @@ __all__ = [
     "FACTORY_RESET_ALL",
     "FACTORY_RESET_ALL_BUT_ID",
     "FACTORY_RESET_ALL_BUT_ID_AND_BAUD",
+    "DynamixelProDevice",
     "H54Device",
 ]
 
 if TYPE_CHECKING:
-    from sim_backend.servo import Measurements
+    from sim_backend.servo import Measurements, WriteCounter
 
 # The items `set_measurements` writes, in the order of servo.Measurements' fields.
 _MEASUREMENT_ITEMS = (
@@ -68,28 +66,40 @@ DEFAULT_FIRMWARE_VERSION = 1  # not published for the legacy Pro; any 0..254 is 
 DEFAULT_REBOOT_TIME_S = 0.3  # not published; a REBOOT of an X-series takes a few hundred ms
 
 
-class H54Device(InstructionSemantics):
-    """One H54-200-S500-R: a bytearray control table plus the firmware's rules.
+class DynamixelProDevice(InstructionSemantics):
+    """One actuator of `model` (e-Manual name or model number; default the H54-200-S500-R): a
+    bytearray control table plus the firmware's rules.
 
     `eeprom_overrides` sets EEPROM items (by e-Manual name) as this unit was configured, e.g.
     {"Return Delay Time": 0, "Max Position Limit": 100_000}; read-only identity items such as
-    "Model Number" may be overridden too (to emulate another model). A factory reset returns the
-    writable ones to the e-Manual values.
+    "Model Number" may be overridden too (a unit that claims another model). A factory reset
+    returns the writable ones to the e-Manual values.
     """
 
     def __init__(
         self,
         dxl_id: int = 1,
         *,
+        model: str | int | DeviceModel = DEFAULT_MODEL,
         baud_index: int = FACTORY_BAUD_INDEX,
         firmware_version: int = DEFAULT_FIRMWARE_VERSION,
         eeprom_overrides: Mapping[str, int] | None = None,
         reboot_time_s: float = DEFAULT_REBOOT_TIME_S,
-        layout: ControlTableLayout = H54_LAYOUT,
     ) -> None:
         if reboot_time_s < 0:
             raise ValueError(f"reboot_time_s must be >= 0, got {reboot_time_s}")
+        self.model = model if isinstance(model, DeviceModel) else device_model(model)
+        layout: ControlTableLayout = self.model.layout
         self._layout = layout
+        self._indirect = self.model.indirect
+        # the special items' addresses on this model (PRO: 562/891/892/890; PRO+: 512/516/518/517)
+        self._torque_address = layout["Torque Enable"].address
+        self._status_return_address = layout["Status Return Level"].address
+        self._hardware_error_address = layout["Hardware Error Status"].address
+        self._registered_address = layout["Registered Instruction"].address
+        self._goal_position_unlimited_modes = (
+            self.model.firmware_items.goal_position_unlimited_modes
+        )
         self._table = bytearray(layout.size_bytes)
         self.reboot_time_s = reboot_time_s
         self.silenced = False  # firmware-side fault: the device hears nothing, answers nothing
@@ -97,7 +107,7 @@ class H54Device(InstructionSemantics):
         self._in_shutdown = False
         self._registered: tuple[int, bytes] | None = None
         self._reboot_listeners: list[Callable[[], None]] = []
-        self._indirect_map: list[int] | None = None  # Indirect Address 1..256, cached
+        self._indirect_map: list[int] | None = None  # Indirect Address 1..n, cached
         # The firmware writes the Present* items when a read may cover them (see
         # `attach_measurement_source`), not after every physics step.
         self._measurement_source: Callable[[], None] | None = None
@@ -110,11 +120,12 @@ class H54Device(InstructionSemantics):
         self._goal_position_address = layout["Goal Position"].address
         # Items that are neither Indirect Data nor Indirect Address: read and written as plain
         # bytes (name -> address, end, size, signed), the fast path of item/set_item.
+        indirect = self._indirect
         self._direct_items: dict[str, tuple[int, int, int, bool]] = {
             item.name: (item.address, item.end, item.size, item.signed)
             for item in layout.items
-            if not (INDIRECT_DATA_BASE <= item.address < INDIRECT_DATA_END)
-            and not (item.end > INDIRECT_ADDRESS_BASE and item.address < INDIRECT_ADDRESS_END)
+            if not (indirect.data_base <= item.address < indirect.data_end)
+            and not (item.end > indirect.address_base and item.address < indirect.address_end)
         }
         # Plain items by (address, size): a write of exactly one of them takes a short path.
         self._whole_items: dict[tuple[int, int], ControlItem] = {
@@ -123,7 +134,7 @@ class H54Device(InstructionSemantics):
             if item.name in self._direct_items
         }
         self._measured_names = frozenset(item.name for item in layout.items if item.measured)
-        self._measurement_address, self._measurement_packer = _packer(
+        self._measurement_packer = MeasurementPacker(
             [self._direct_items[name] for name in _MEASUREMENT_ITEMS], layout
         )
         # Each checked item's Data Limit bounds (e-Manual): a constant, or another plain item
@@ -164,7 +175,7 @@ class H54Device(InstructionSemantics):
     @property
     def baud_bps(self) -> int:
         """The line speed this device listens and answers at, from Baud Rate (8)."""
-        return BAUD_RATE_BPS[self._table[8]]
+        return self.model.baud_rates[self._table[8]]
 
     @property
     def return_delay_s(self) -> float:
@@ -173,11 +184,11 @@ class H54Device(InstructionSemantics):
 
     @property
     def status_return_level(self) -> int:
-        return self._table[891]
+        return self._table[self._status_return_address]
 
     @property
     def torque_enabled(self) -> bool:
-        return self._table[562] != 0
+        return self._table[self._torque_address] != 0
 
     @property
     def in_shutdown(self) -> bool:
@@ -186,7 +197,7 @@ class H54Device(InstructionSemantics):
 
     @property
     def hardware_error_status(self) -> int:
-        return self._table[892]
+        return self._table[self._hardware_error_address]
 
     def item(self, name: str) -> int:
         """Decoded value of an item (signed where the item is); Indirect Data follows its map."""
@@ -199,7 +210,7 @@ class H54Device(InstructionSemantics):
             address, end, _, signed = direct
             return int.from_bytes(self._table[address:end], "little", signed=signed)
         item = self._layout[name]
-        if INDIRECT_DATA_BASE <= item.address < INDIRECT_DATA_END:
+        if self._indirect.data_base <= item.address < self._indirect.data_end:
             return self._table[self._indirect_target(item.address)]
         return item.decode(self._table[item.address : item.end])
 
@@ -226,7 +237,7 @@ class H54Device(InstructionSemantics):
             except OverflowError:
                 pass  # the general path below raises the item's own error message
         item = self._layout[name]
-        if INDIRECT_DATA_BASE <= item.address < INDIRECT_DATA_END:
+        if self._indirect.data_base <= item.address < self._indirect.data_end:
             self._table[self._indirect_target(item.address)] = item.encode(value)[0]
         else:
             self._store(item, value)
@@ -234,8 +245,7 @@ class H54Device(InstructionSemantics):
     def set_measurements(self, measurements: Measurements) -> None:
         """Firmware-side: the Present* items after a physics step, in one go (the revision
         stays: they are not the firmware's inputs)."""
-        # in the order of _MEASUREMENT_ITEMS, one pack over the block (gaps: undefined bytes)
-        self._measurement_packer.pack_into(self._table, self._measurement_address, *measurements)
+        self._measurement_packer.pack_into(self._table, measurements)
 
     def attach_measurement_source(self, write_measurements: Callable[[], None]) -> None:
         """`write_measurements()` runs before every read that may cover the Present* items (a
@@ -244,24 +254,24 @@ class H54Device(InstructionSemantics):
         self._measurement_source = write_measurements
 
     def raise_hardware_error(self, bits: int) -> None:
-        """OR `bits` into Hardware Error Status (892). Bits also set in Shutdown (48) turn
-        torque off and latch the shutdown until REBOOT."""
+        """OR `bits` into Hardware Error Status (PRO 892, PRO+ 518). Bits also set in Shutdown
+        (PRO 48, PRO+ 63) turn torque off and latch the shutdown until REBOOT."""
         if bits & ~HARDWARE_ERROR_BITS_MASK or bits < 0:
             raise ValueError(
                 f"hardware error bits must be within 0x{HARDWARE_ERROR_BITS_MASK:02X} "
                 f"(bits 7 and 6 are unused), got 0x{bits:X}"
             )
         self._bump()
-        self._table[892] |= bits
+        self._table[self._hardware_error_address] |= bits
         if bits & self.item("Shutdown"):
-            self._table[562] = 0
+            self._table[self._torque_address] = 0
             self._in_shutdown = True
 
     def clear_hardware_error(self, bits: int) -> None:
         """Clear bits of Hardware Error Status (a non-latched condition went away). The
         shutdown latch stays: only REBOOT clears it."""
         self._bump()
-        self._table[892] &= ~bits & 0xFF
+        self._table[self._hardware_error_address] &= ~bits & 0xFF
 
     def available(self, now_s: float) -> bool:
         """False while rebooting or while silenced by a firmware-side fault."""
@@ -276,7 +286,7 @@ class H54Device(InstructionSemantics):
     def _store(self, item: ControlItem, value: int) -> None:
         self._bump()
         self._table[item.address : item.end] = item.encode(value)
-        if item.end > INDIRECT_ADDRESS_BASE and item.address < INDIRECT_ADDRESS_END:
+        if item.end > self._indirect.address_base and item.address < self._indirect.address_end:
             self._indirect_map = None
 
     def _store_checked(self, name: str, value: int) -> None:
@@ -292,38 +302,65 @@ class H54Device(InstructionSemantics):
         self._store(self._layout["Goal Position"], position)
 
     def _indirect_targets(self) -> list[int]:
-        """Indirect Address 1..256 as a list (rebuilt after any write to 49..560)."""
+        """Indirect Address 1..n as a list (rebuilt after any write to the entries)."""
         if self._indirect_map is None:
-            table = self._table
+            table, indirect = self._table, self._indirect
             self._indirect_map = [
                 table[base] | (table[base + 1] << 8)
-                for base in range(INDIRECT_ADDRESS_BASE, INDIRECT_ADDRESS_END, 2)
+                for base in range(indirect.address_base, indirect.address_end, 2)
             ]
         return self._indirect_map
 
     def _indirect_target(self, data_address: int) -> int:
-        return self._indirect_targets()[data_address - INDIRECT_DATA_BASE]
+        return self._indirect_targets()[data_address - self._indirect.data_base]
 
     def _physical(self, address: int) -> int:
         """Where the byte at `address` really lives (Indirect Data follows its map)."""
-        if INDIRECT_DATA_BASE <= address < INDIRECT_DATA_END:
+        if self._indirect.data_base <= address < self._indirect.data_end:
             return self._indirect_target(address)
         return address
 
 
-def _packer(
-    slots: list[tuple[int, int, int, bool]], layout: ControlTableLayout
-) -> tuple[int, struct.Struct]:
-    """(first address, little-endian Struct) writing items (address, end, size, signed) in
-    address order with one pack_into; the gaps between them must be undefined bytes (which
-    always read 0, and the pad bytes write 0)."""
-    codes = {1: "b", 2: "h", 4: "i"}
-    fmt = "<"
-    end = slots[0][0]
-    for address, item_end, size, signed in slots:
-        gap = range(end, address)
-        if address < end or any(layout.item_at(byte) is not None for byte in gap):
-            raise ValueError("the measured items must follow each other, gaps undefined")
-        fmt += "x" * len(gap) + (codes[size] if signed else codes[size].upper())
-        end = item_end
-    return slots[0][0], struct.Struct(fmt)
+# The name the class had while it emulated one model (kept for the code that says so).
+H54Device = DynamixelProDevice
+
+
+class MeasurementPacker:
+    """Writes the measured items (in `servo.Measurements`' order) into a table: one
+    `pack_into` over the block where they follow each other in address order with only undefined
+    bytes between them (the PRO: 610..625), else one per item (PRO+: Present Current 574 lies
+    before Present Velocity 576 and Position 580, Moving Status and Present PWM between)."""
+
+    def __init__(self, slots: list[tuple[int, int, int, bool]], layout: ControlTableLayout) -> None:
+        codes = {1: "b", 2: "h", 4: "i"}
+
+        def code(size: int, signed: bool) -> str:
+            return codes[size] if signed else codes[size].upper()
+
+        self._block: tuple[int, struct.Struct] | None = None
+        self._items: list[tuple[int, struct.Struct]] = []
+        ordered = all(a[1] <= b[0] for a, b in zip(slots, slots[1:], strict=False))
+        gaps_undefined = ordered and all(
+            layout.item_at(byte) is None
+            for a, b in zip(slots, slots[1:], strict=False)
+            for byte in range(a[1], b[0])
+        )
+        if gaps_undefined:
+            fmt, end = "<", slots[0][0]
+            for address, item_end, size, signed in slots:
+                fmt += "x" * (address - end) + code(size, signed)
+                end = item_end
+            self._block = (slots[0][0], struct.Struct(fmt))
+        else:
+            self._items = [
+                (address, struct.Struct("<" + code(size, signed)))
+                for address, _, size, signed in slots
+            ]
+
+    def pack_into(self, table: bytearray, values: Measurements) -> None:
+        if self._block is not None:
+            address, packer = self._block
+            packer.pack_into(table, address, *values)
+            return
+        for (address, packer), value in zip(self._items, values, strict=True):
+            packer.pack_into(table, address, value)

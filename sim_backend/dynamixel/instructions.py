@@ -1,23 +1,24 @@
-"""The instruction semantics of an emulated H54 (`H54Device`'s protocol face): what PING, READ,
-WRITE, REG_WRITE, ACTION, REBOOT and FACTORY_RESET do to the control table, and the checks a
-write meets.
+"""The instruction semantics of an emulated PRO (`DynamixelProDevice`'s protocol face): what
+PING, READ, WRITE, REG_WRITE, ACTION, REBOOT and FACTORY_RESET do to the control table, and the
+checks a write meets. The addresses are the device's model's (legacy PRO or PRO+).
 
-Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the H54 page):
+Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the models' pages):
 - EEPROM items are written only while Torque Enable = 0, else Access Error (7).
 - Read-only or undefined addresses: Access Error (7). A READ may span undefined bytes of the
   table (they read as 0); a READ past the end of the table is an Access Error with no data.
 - Data Length Error (5): a write that covers only part of an item (also through indirect data).
 - Data Range Error (4): a value outside the item's range.
-- Data Limit Error (6): Goal Position outside Min/Max Position Limit (36/40), Goal Velocity
-  beyond +-Velocity Limit (32), Goal Torque beyond +-Torque Limit (30), Goal Acceleration
-  outside 0..Acceleration Limit (26).
+- Data Limit Error (6): Goal Position outside Min/Max Position Limit (PRO 36/40), Goal Velocity
+  beyond +-Velocity Limit, Goal Torque beyond +-Torque Limit (PRO+: Goal Current, Current
+  Limit; Goal PWM, PWM Limit), Goal Acceleration (PRO) / Profile Acceleration and Velocity
+  (PRO+) outside 0..their limit.
 - A write with any error changes nothing (all of it or none of it). Checks in this order:
   access, length, range, limit, shutdown.
 - Alert bit 0x80 in every status packet while Hardware Error Status != 0.
-- Shutdown (48): a hardware error whose bit is enabled there clears Torque Enable; only a REBOOT
-  brings torque back ("REBOOT is the only method to reset Torque Enable to '1'"). Not documented:
-  the reply to Torque Enable = 1 while shut down. This emulator refuses it with Result Fail (1)
-  (plus the alert bit) and leaves torque off.
+- Shutdown (PRO 48, PRO+ 63): a hardware error whose bit is enabled there clears Torque Enable;
+  only a REBOOT brings torque back ("REBOOT is the only method to reset Torque Enable to '1'").
+  Not documented: the reply to Torque Enable = 1 while shut down. This emulator refuses it with
+  Result Fail (1) (plus the alert bit) and leaves torque off.
 - REG_WRITE is checked when it arrives (errors are reported then and nothing is registered) and
   again when ACTION executes it. ACTION without a registered write: Instruction Error (2).
 - REBOOT: the status packet is built first (with the pre-reboot alert bit); then RAM returns to
@@ -31,20 +32,14 @@ Rules (ROBOTIS e-Manual "Protocol 2.0" Status Packet/Instruction Details and the
   Access Error (7) like any EEPROM write (the e-Manual does not say; the ROM lock does).
   Broadcast with 0xFF is ignored (e-Manual; the chain handles broadcast).
 - Indirect Data n reads/writes the byte at Indirect Address n, inheriting that item's size,
-  range and access (include control_table_49_indirectdata_pro.md). An Indirect Address that
+  range and access (includes control_table_49_indirectdata_pro.md, p/control_table_168_indirect.md;
+  PRO+: a target past the table's last item is an undefined byte). An Indirect Address that
   points at an Indirect Data byte reaches that byte's own storage (one level only: no loops).
 """
 
 from __future__ import annotations
 
-from sim_backend.dynamixel.control_table import (
-    INDIRECT_ADDRESS_BASE,
-    INDIRECT_COUNT,
-    INDIRECT_DATA_BASE,
-    Access,
-    Area,
-    ControlItem,
-)
+from sim_backend.dynamixel.control_table import Access, Area, ControlItem
 from sim_backend.dynamixel.protocol import ALERT_BIT, ErrorCode, Instruction
 
 FACTORY_RESET_ALL = 0xFF
@@ -52,20 +47,18 @@ FACTORY_RESET_ALL_BUT_ID = 0x01
 FACTORY_RESET_ALL_BUT_ID_AND_BAUD = 0x02
 
 _TORQUE_ENABLE = "Torque Enable"
-INDIRECT_DATA_END = INDIRECT_DATA_BASE + INDIRECT_COUNT
-INDIRECT_ADDRESS_END = INDIRECT_ADDRESS_BASE + 2 * INDIRECT_COUNT
 
 # A Data Limit bound: None, a constant, or (address, end, signed, negated) of a plain item.
 Bound = int | tuple[int, int, bool, bool] | None
 
 
 class InstructionSemantics:
-    """The protocol face of `H54Device` (sim_backend/dynamixel/device.py), a mixin: it works on
-    the device's control table, indirect map and latches."""
+    """The protocol face of `DynamixelProDevice` (sim_backend/dynamixel/device.py), a mixin: it
+    works on the device's control table, indirect map and latches."""
 
     def replies_to(self, instruction: int) -> bool:
-        """Status Return Level (891): 0 = PING only, 1 = PING and READ, 2 = everything.
-        SYNC_READ and BULK_READ count as READ."""
+        """Status Return Level (PRO 891, PRO+ 516): 0 = PING only, 1 = PING and READ,
+        2 = everything. SYNC_READ and BULK_READ count as READ."""
         if instruction == Instruction.PING:
             return True
         level = self.status_return_level
@@ -79,7 +72,7 @@ class InstructionSemantics:
 
     def status_error(self, error: int) -> int:
         """The status packet's error byte: `error` plus the alert bit while HES != 0."""
-        return error | ALERT_BIT if self._table[892] else error
+        return error | ALERT_BIT if self._table[self._hardware_error_address] else error
 
     def ping(self) -> bytes:
         """PING status params: model number LSB, MSB, firmware version."""
@@ -93,12 +86,13 @@ class InstructionSemantics:
             self._measurement_source()
         end = address + length
         table = self._table
-        if end <= INDIRECT_DATA_BASE or address >= INDIRECT_DATA_END:
+        data_base, data_end = self._indirect.data_base, self._indirect.data_end
+        if end <= data_base or address >= data_end:
             return ErrorCode.NONE, bytes(table[address:end])
         data = bytearray(table[address:end])
         targets = self._indirect_targets()
-        for data_address in range(max(address, INDIRECT_DATA_BASE), min(end, INDIRECT_DATA_END)):
-            data[data_address - address] = table[targets[data_address - INDIRECT_DATA_BASE]]
+        for data_address in range(max(address, data_base), min(end, data_end)):
+            data[data_address - address] = table[targets[data_address - data_base]]
         return ErrorCode.NONE, bytes(data)
 
     def write(self, address: int, data: bytes) -> int:
@@ -109,9 +103,10 @@ class InstructionSemantics:
         error, plan = self._plan_write(address, data)
         if error == ErrorCode.NONE:
             self._bump()
+            indirect = self._indirect
             for physical, byte in plan:
                 self._table[physical] = byte
-                if INDIRECT_ADDRESS_BASE <= physical < INDIRECT_ADDRESS_END:
+                if indirect.address_base <= physical < indirect.address_end:
                     self._indirect_map = None
         return error
 
@@ -125,7 +120,7 @@ class InstructionSemantics:
         error, _ = self._plan_write(address, data)
         if error == ErrorCode.NONE:
             self._registered = (address, bytes(data))
-            self._table[890] = 1
+            self._table[self._registered_address] = 1
         return error
 
     def action(self) -> int:
@@ -134,7 +129,7 @@ class InstructionSemantics:
             return ErrorCode.INSTRUCTION
         address, data = self._registered
         self._registered = None
-        self._table[890] = 0
+        self._table[self._registered_address] = 0
         return self.write(address, data)
 
     def reboot(self, now_s: float) -> None:
@@ -209,9 +204,9 @@ class InstructionSemantics:
             if bounds is None:
                 continue
             if item.address == self._goal_position_address and (
-                self._table[self._operating_mode_address] == 4
+                self._table[self._operating_mode_address] in self._goal_position_unlimited_modes
             ):
-                continue  # Extended Position Control Mode ignores the position limits
+                continue  # e.g. Extended Position Control Mode ignores the position limits
             low = self._limit_value(bounds[0])
             high = self._limit_value(bounds[1])
             if (low is not None and value < low) or (high is not None and value > high):

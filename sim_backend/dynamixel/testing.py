@@ -1,4 +1,4 @@
-"""Run an emulated H54 chain in a separate process, for tests that drive it with dynamixel-sdk.
+"""Run an emulated chain in a separate process, for tests that drive it with dynamixel-sdk.
 
 Why a process: dynamixel-sdk busy-waits while it receives, so an emulator thread in the same
 interpreter is starved by the GIL. The child is started with the multiprocessing "spawn"
@@ -15,6 +15,10 @@ context and always stopped by the context manager.
         emu.item(2, "Goal Position")               # firmware-side read
         emu.faults(silent_ids={2})                 # line faults, see LineFaults
         emu.clear_faults()
+
+    # a mixed chain: one model for all, or {id: model} (e-Manual names; default H54-200-S500-R)
+    with spawn_emulated_chain(ids=(1, 2, 3), models={2: "H54-100-S500-R", 3: "H42-20-S300-R"}):
+        ...
 
 Stand-in firmware (`firmware=`):
 - "ideal": before every instruction, Present Position := Goal Position on each device whose
@@ -37,9 +41,10 @@ from sim_backend.dynamixel.control_table import HARDWARE_ERROR_BITS_MASK
 from sim_backend.dynamixel.device import (
     DEFAULT_FIRMWARE_VERSION,
     DEFAULT_REBOOT_TIME_S,
-    H54Device,
+    DynamixelProDevice,
 )
 from sim_backend.dynamixel.line import DynamixelLine, request_realtime_scheduling
+from sim_backend.dynamixel.models import DEFAULT_MODEL
 
 FIRMWARES = ("ideal", "none")
 _COMMAND_TIMEOUT_S = 10.0
@@ -49,7 +54,7 @@ _LOOP_MAX_WAIT_S = 0.05
 class IdealFirmware:
     """Present Position follows Goal Position at once while torque is on (tick listener)."""
 
-    def __init__(self, devices: Sequence[H54Device]) -> None:
+    def __init__(self, devices: Sequence[DynamixelProDevice]) -> None:
         self.devices = tuple(devices)
 
     def __call__(self, now_s: float) -> None:
@@ -73,6 +78,7 @@ class EmulatorOptions:
     reboot_time_s: float = DEFAULT_REBOOT_TIME_S
     firmware_version: int = DEFAULT_FIRMWARE_VERSION
     realtime_scheduling: bool = True
+    models: dict[int, str] = field(default_factory=dict)  # by ID; absent: DEFAULT_MODEL
 
     def overrides_for(self, dxl_id: int) -> dict[str, int]:
         """`eeprom_overrides` is either {name: value} for all devices or {id: {name: value}}."""
@@ -87,8 +93,9 @@ class _ChildEmulator:
     def __init__(self, options: EmulatorOptions) -> None:
         self.sched_fifo = options.realtime_scheduling and request_realtime_scheduling()
         self.devices = [
-            H54Device(
+            DynamixelProDevice(
                 dxl_id,
+                model=options.models.get(dxl_id, DEFAULT_MODEL),
                 baud_index=options.baud_index,
                 firmware_version=options.firmware_version,
                 eeprom_overrides=options.overrides_for(dxl_id),
@@ -103,7 +110,7 @@ class _ChildEmulator:
         self.scheduled_errors: list[tuple[float, int, int]] = []  # (due, id, bits)
         self.running = True
 
-    def device(self, dxl_id: int) -> H54Device:
+    def device(self, dxl_id: int) -> DynamixelProDevice:
         """By the ID it was created with, even after its ID item changed."""
         for device in self.devices:
             if device.dxl_id == dxl_id:
@@ -317,9 +324,12 @@ def spawn_emulated_chain(
     firmware_version: int = DEFAULT_FIRMWARE_VERSION,
     realtime_scheduling: bool = True,
     start_timeout_s: float = 20.0,
+    models: str | Mapping[int, str] = DEFAULT_MODEL,
 ) -> Iterator[EmulatedChain]:
-    """Start an emulated chain of H54s in a child process; yield its handle; always stop it.
+    """Start an emulated chain in a child process; yield its handle; always stop it.
 
+    models: every device's model (an e-Manual name, e.g. "H42-20-S300-R(A)"), or {id: model}
+    (IDs not named: the H54-200-S500-R).
     ids: the device IDs on the line. baud_index: Baud Rate (8) of every device (6 = 4 Mbps;
     the SDK must then use setBaudRate(4_000_000) if enforce_baud is on, or for realtime timing).
     realtime: reply at wire-model times instead of at once. eeprom_overrides: {name: value} for
@@ -343,6 +353,11 @@ def spawn_emulated_chain(
         reboot_time_s=reboot_time_s,
         firmware_version=firmware_version,
         realtime_scheduling=realtime_scheduling,
+        models=(
+            dict.fromkeys((int(i) for i in ids), models)
+            if isinstance(models, str)
+            else {int(k): str(v) for k, v in models.items()}
+        ),
     )
     context = multiprocessing.get_context("spawn")
     parent_conn, child_conn = context.Pipe()

@@ -149,9 +149,12 @@ def test_h54_control_table_addresses_from_the_emanual() -> None:
         spec.indirect_data_of(257)
     with pytest.raises(KeyError, match="no control-table item"):
         spec.item("Goal PWM")
-    with pytest.raises(ValueError, match="54025 is not supported.*54024"):
-        model_spec(54025)
+    with pytest.raises(ValueError, match="1234 is not supported.*54024.*54025"):
+        model_spec(1234)  # no PRO model: refused, naming the supported ones
+    with pytest.raises(ValueError, match=r"35072 \(L42-10-S300-R\) is not supported.*PRO layout"):
+        model_spec(35072)  # a PRO whose table is another: refused with the reason
     assert model_name(54025) == "H54-200-S500-R(A)"
+    assert model_name(35072) == "L42-10-S300-R (not supported)"
     assert model_name(1234) == "unknown model 1234"
 
 
