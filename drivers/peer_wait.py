@@ -8,7 +8,8 @@ such a delay would depend on the machine's load. So a wait that has used its all
 what the process is doing (`PeerActivity`, observed by whoever knows the process: hil/wiring),
 and goes on while it works:
 
-    working     runnable at a look (running, or waiting for a CPU), or it used more than
+    working     runnable at a look (running, waiting for a CPU, or in uninterruptible I/O),
+                or it used more than
                 BUSY_CPU_SHARE of the time since the idle stretch began: the wait is extended
                 by LOOK_INTERVAL_S and it is looked at again then
     idle        neither, at every look for `idle_window_s` in a row (stopped by SIGSTOP or a

@@ -66,7 +66,12 @@ class ProcessActivity:
         state = fields[0]
         if state in ("Z", "X") or self._started is None or fields[19] != self._started:
             return None
-        return PeerLook(runnable=state == "R", cpu_s=cpu_ns * 1e-9, state=describe_state(state))
+        # in uninterruptible I/O (D: a page it faults in, a write the disk holds up) a process
+        # is working as surely as a runnable one, only not on a CPU: on a machine whose disk
+        # others load, an emulator paging its code back in lost a whole sync read (all twelve
+        # joints invalid for a tick of a lock-step walk) to a 10 ms idle window
+        working = state in ("R", "D")
+        return PeerLook(runnable=working, cpu_s=cpu_ns * 1e-9, state=describe_state(state))
 
     def _start_time(self) -> str | None:
         try:
