@@ -9,9 +9,8 @@ what the process is doing (`PeerActivity`, observed by whoever knows the process
 and goes on while it works:
 
     working     runnable at a look (running, waiting for a CPU, or in uninterruptible I/O),
-                or it used more than
-                BUSY_CPU_SHARE of the time since the idle stretch began: the wait is extended
-                by LOOK_INTERVAL_S and it is looked at again then
+                or it used more than BUSY_CPU_SHARE of the time since the idle stretch began:
+                the wait is extended by LOOK_INTERVAL_S and it is looked at again then
     idle        neither, at every look for `idle_window_s` in a row (stopped by SIGSTOP or a
                 debugger, ended, or asleep with nothing to do - a silent device, a request it
                 dropped): the wait ends, as on hardware
