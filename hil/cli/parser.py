@@ -7,6 +7,7 @@ from pathlib import Path
 
 import hil
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES, GC_COMPLIANCES
+from hil.cli.views import add_view_commands
 from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
 from hil.session.comparison import NAMED_COMPARISONS
@@ -241,6 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_identify(sub)
     _add_sweep(sub)
+    add_view_commands(sub)  # hil export, hil render
 
     _add_bringup(sub)
     config = sub.add_parser("config", help="print a built-in configuration file (a template)")

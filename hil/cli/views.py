@@ -1,0 +1,47 @@
+"""The commands that show a finished run where robotics engineers look: `hil export ros2
+RUN_DIR` (a ROS 2 bag, hil/output/ros2_bag.py) and `hil render RUN_DIR` (snapshots and a
+video of the emulated robot, hil/render/)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from hil.cli.exit_codes import ExitCode
+from hil.config import ConfigError
+
+
+def add_view_commands(sub: argparse._SubParsersAction) -> None:
+    """`hil export` and `hil render`."""
+    export = sub.add_parser(
+        "export",
+        help="write a finished run in another format (ros2: a ROS 2 bag)",
+        description="ros2: the run as a ROS 2 bag, one MCAP file in ROS 2's encoding (CDR, "
+        "profile ros2) that `ros2 bag info` / `ros2 bag play` and Foxglove read: "
+        "/joint_states, /motor_states, the force sensors' wrenches, /tf, /tf_static, "
+        "/robot_description, the events and the run's meta and summary. Needs the `ros2` "
+        "extra.",
+    )
+    export.add_argument("format", choices=["ros2"], help="the format (ros2)")
+    export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run directory")
+    export.add_argument("--out", type=Path, help="the bag's file (default: RUN_DIR/run.ros2.mcap)")
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from hil.output.ros2_bag import MISSING_EXTRA, export_ros2
+
+    run_dir: Path = args.run_dir
+    if not (run_dir / "log.csv").is_file():
+        raise ConfigError(f"RUN_DIR {run_dir}: no log.csv there (not a run directory)")
+    if args.out is not None and args.out.exists():
+        raise ConfigError(f"--out {args.out}: exists already (not overwritten)")
+    try:
+        path = export_ros2(run_dir, args.out)
+    except ImportError as exc:
+        if str(exc) != MISSING_EXTRA:
+            raise
+        print(f"hil export: {exc}", file=sys.stderr)
+        return ExitCode.USAGE
+    print(path)
+    return ExitCode.OK
