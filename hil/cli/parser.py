@@ -131,6 +131,12 @@ def _add_run_output(run: argparse.ArgumentParser) -> None:
         "--no-mcap", action="store_true", help="do not write run.mcap beside the CSV log"
     )
     run.add_argument(
+        "--ros2",
+        action="store_true",
+        help="also write the run as a ROS 2 bag, run.ros2.mcap (the `ros2` extra; "
+        "`hil export ros2 RUN_DIR` makes one after the run)",
+    )
+    run.add_argument(
         "--live",
         action="store_true",
         help="serve the run's signals to Foxglove (WebSocket) while it goes",

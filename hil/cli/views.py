@@ -29,7 +29,8 @@ def add_view_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from hil.output.ros2_bag import MISSING_EXTRA, export_ros2
+    from hil.output.ros2_bag import MISSING_EXTRA
+    from hil.output.ros2_export import export_ros2
 
     run_dir: Path = args.run_dir
     if not (run_dir / "log.csv").is_file():

@@ -15,7 +15,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 from hil.output.channels import Channel
@@ -45,10 +44,10 @@ class McapSink:
 
     def add_channel(self, channel: Channel) -> None:
         schema_id = self._writer.register_schema(
-            channel.schema_name, SchemaEncoding.JSONSchema, channel.schema_bytes
+            channel.schema_name, channel.schema_encoding, channel.schema_bytes
         )
         self._ids[channel.id] = self._writer.register_channel(
-            channel.topic, MessageEncoding.JSON, schema_id, channel.metadata
+            channel.topic, channel.message_encoding, schema_id, channel.metadata
         )
         self._sequence[channel.id] = 0
 

@@ -10,6 +10,8 @@ A run's robot comes from its meta.json (`[model] robot` of the configuration it 
                  origin to each of its child joints, a sphere at each joint, the soles as boxes.
     single_link  one joint: hil/data/robots/testbed.urdf (the paper's testbed), its joint named
                  as the run's; several single-link joints have no URDF (frames are left out).
+    another      its [model] description, fixed base, with the same drawn shapes; none
+                 without one (frames are left out).
 
 Force sensors: a foot's six columns `<name>_fx_n ... <name>_mz_nm` (the ground's wrench on the
 robot in the foot sensor's frame, *_AnkleRoll_Link at the ankle axis: hil/config's
@@ -47,10 +49,12 @@ _SOLE_RGBA = "0.15 0.15 0.15 1"
 
 
 class RobotKind(StrEnum):
-    """The robots a run can have driven ([model] robot)."""
+    """The robots viewers know ([model] robot); OTHER: another robot, drawn from its [model]
+    description (a URDF, fixed base) when it has one."""
 
     TESTBED = "single_link"
     DYROS_JET = "dyros-jet"
+    OTHER = "other"
 
 
 @dataclass(frozen=True)
@@ -82,14 +86,18 @@ def robot_of_run(
 ) -> RunRobot:
     """The robot of a run from its meta.json, joint names and log sensor columns."""
     model = (meta.get("config") or {}).get("model") or {}
-    kind = RobotKind(model.get("robot") or RobotKind.TESTBED)
+    named = str(model.get("robot") or RobotKind.TESTBED)
+    kind = RobotKind(named) if named in set(RobotKind) else RobotKind.OTHER
     names = tuple(joint_names)
     sensors = force_sensors(sensor_columns)
     stiffness = _gear_stiffness(model, names)
     if kind is RobotKind.DYROS_JET:
         urdf = shipped_or_file(model.get("description") or HUMANOID_URDF)
         return RunRobot(kind, names, urdf, with_skeleton_visuals(urdf), True, sensors, stiffness)
-    if len(names) != 1:
+    if kind is RobotKind.OTHER and model.get("description"):
+        urdf = shipped_or_file(str(model["description"]))
+        return RunRobot(kind, names, urdf, with_skeleton_visuals(urdf), False, sensors, stiffness)
+    if kind is RobotKind.OTHER or len(names) != 1:
         return RunRobot(kind, names, None, None, False, sensors, stiffness)
     urdf = _shipped(TESTBED_URDF).replace(f'name="{TESTBED_JOINT}"', f'name="{names[0]}"')
     return RunRobot(kind, names, urdf, urdf, False, sensors, stiffness)

@@ -93,6 +93,9 @@ class RobotFrames:
         else:
             self.model = pin.buildModelFromXML(robot.urdf)
             self.data = self.model.createData()
+            missing = [n for n in self.joint_names if not self.model.existJointName(n)]
+            if missing:
+                raise ValueError(f"the robot's URDF has no joints {missing}")
             self._q_index = np.array(
                 [self.model.joints[self.model.getJointId(n)].idx_q for n in self.joint_names]
             )

@@ -2,8 +2,10 @@
 schemas "ros2msg" as rosbag2 writes them: hil/output/ros2_messages.py), which `ros2 bag info`
 and `ros2 bag play` read (rosbag2's mcap storage; Humble: add `-s mcap`), and Foxglove too.
 
-Made from a finished run directory (`hil export ros2 RUN_DIR`, `export_ros2`) or while the run
-goes (`hil run --ros2`: `Ros2BagSink`, fed the run log's messages in the log writer's process),
+Made from a finished run directory (`hil export ros2 RUN_DIR`, hil/output/ros2_export.py) or
+while the run
+goes (`hil run --ros2`: hil/output/views.py, fed the run log's messages in the log writer's
+process),
 the same messages either way. Every message is stamped with the run's time: the run's start
 (meta.json "started", local time, to the second) plus the tick's time_s; a message's log time
 is its stamp.
@@ -39,19 +41,16 @@ and the log writer finishes the file when the loop's process ends, however it en
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hil.output import ros2_messages as msg
-from hil.output.channels import EVENTS, JOINTS, LOOP, SUMMARY, Channel
-from hil.output.robot_description import RunRobot, robot_of_run
+from hil.output.robot_description import RunRobot
 from hil.output.robot_frames import BASE_POSE_NOTE, FrameTransform, robot_frames
-from hil.output.rundir import RunData, load_run
 from hil.output.strict_json import dumps, plain
-from hil.output.tick_sample import TickAssembler, TickSample, samples_of_run, sensor_columns
+from hil.output.tick_sample import TickSample
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -62,10 +61,16 @@ MISSING_EXTRA = (
     "(mcap-ros2-support, for the CDR encoding)"
 )
 CHUNK_SIZE_BYTES = 64 * 1024
-PER_JOINT = ("motor_angle_rad", "link_angle_rad", "deflection_rad", "motor_velocity_rad_s")
 LIBRARY = "flexjoint-hil"
 _FOREVER = "    sec: 9223372036\n    nsec: 854775807\n"  # rmw's infinite duration (Jazzy)
 _ERROR_KINDS = frozenset({"error", "bus_failure", "start_refused", "controller_traceback"})
+
+
+def ros2_support_installed() -> bool:
+    """Whether the `ros2` extra (mcap-ros2-support) can be imported."""
+    import importlib.util
+
+    return importlib.util.find_spec("mcap_ros2") is not None
 
 
 def offered_qos(durability: str, depth: int) -> str:
@@ -258,81 +263,3 @@ def _tf_message(transforms: Iterable[FrameTransform], time_ns: int) -> dict[str,
             for t in transforms
         ]
     }
-
-
-# --- from a finished run ----------------------------------------------------------------------
-def run_joint_names(run: RunData) -> tuple[str, ...]:
-    """The log's joint names; a single-joint log's from meta.json (its columns have none)."""
-    if run.joint_names != ("",):
-        return run.joint_names
-    joints = (run.meta.get("config") or {}).get("joint") or [{}]
-    return (str(joints[0].get("name") or "joint"),)
-
-
-def export_ros2(run_dir: Path, out: Path | None = None) -> Path:
-    """The bag of a finished run directory (default RUN_DIR/run.ros2.mcap); returns its path."""
-    run = load_run(run_dir)
-    path = Path(out) if out is not None else run.out_dir / ROS2_BAG_NAME
-    robot = robot_of_run(run.meta, run_joint_names(run), sensor_columns(run))
-    bag = Ros2Bag(path, robot, run.meta)
-    try:
-        records = sorted(run.events, key=lambda e: float(e.get("time_s") or 0.0))
-        pending = iter(records)
-        event = next(pending, None)
-        last_s = 0.0
-        for sample in samples_of_run(run, PER_JOINT):
-            while event is not None and float(event.get("time_s") or 0.0) <= sample.time_s:
-                bag.event(event)
-                event = next(pending, None)
-            bag.tick(sample)
-            last_s = sample.time_s
-        while event is not None:
-            bag.event(event)
-            last_s = max(last_s, float(event.get("time_s") or 0.0))
-            event = next(pending, None)
-        if run.summary:
-            bag.summary(run.summary, last_s)
-    finally:
-        bag.close()
-    return path
-
-
-# --- while the run goes -----------------------------------------------------------------------
-class Ros2BagSink:
-    """A MessageSink writing the bag from the run log's messages (hil/output/channels.py):
-    /joints and /loop make a tick, /events an event, /run/summary the end."""
-
-    def __init__(
-        self,
-        path: Path,
-        meta: dict[str, Any],
-        joint_names: Sequence[str],
-        sensor_names: Sequence[str],
-    ) -> None:
-        robot = robot_of_run(meta, joint_names, sensor_names)
-        self.bag = Ros2Bag(path, robot, meta)
-        self._assembler = TickAssembler(PER_JOINT, tuple(sensor_names))
-        self._topics: dict[int, str] = {}
-        self._last_s = 0.0
-
-    def add_channel(self, channel: Channel) -> None:
-        self._topics[channel.id] = channel.topic
-
-    def message(self, channel_id: int, log_time_ns: int, data: bytes) -> None:
-        topic = self._topics.get(channel_id)
-        if topic == JOINTS:
-            self._assembler.joints(data)
-        elif topic == LOOP:
-            sample = self._assembler.loop(data)
-            if sample is not None:
-                self._last_s = max(self._last_s, sample.time_s)
-                self.bag.tick(sample)
-        elif topic == EVENTS:
-            record = json.loads(data)
-            self._last_s = max(self._last_s, float(record.get("time_s") or 0.0))
-            self.bag.event(record)
-        elif topic == SUMMARY:
-            self.bag.summary(json.loads(data), self._last_s)
-
-    def close(self) -> None:
-        self.bag.close()

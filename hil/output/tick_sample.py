@@ -1,6 +1,6 @@
 """One tick of a run's log as numbers (`TickSample`): what the views derived from the log (the
 ROS 2 bag, the robot's frames in run.mcap) are made of, read either from a finished run
-directory (`samples_of_run`) or from the run log's own messages while the run goes
+directory (hil/output/run_samples.py) or from the run log's own messages while the run goes
 (`TickAssembler`: /joints and /loop, hil/output/channels.py). Both hold log.csv's values: the
 messages carry the row's own cells, so the two readings are the same floats."""
 
@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
-from hil.output.rundir import RunData
+# The per-joint columns the views use (the bag's joint states, the frames' link angles)
+VIEW_COLUMNS = ("motor_angle_rad", "link_angle_rad", "deflection_rad", "motor_velocity_rad_s")
 
 
 @dataclass(frozen=True)
@@ -25,34 +26,6 @@ class TickSample:
     time_s: float
     joints: Mapping[str, np.ndarray]
     sensors: Mapping[str, float]
-
-
-def sensor_columns(run: RunData) -> tuple[str, ...]:
-    """A log's named sensor columns: those between time_s and supervisor_state."""
-    names = list(run.columns)
-    return tuple(names[names.index("time_s") + 1 : names.index("supervisor_state")])
-
-
-def samples_of_run(run: RunData, per_joint: tuple[str, ...]) -> Iterator[TickSample]:
-    """Every row of a finished run's log, the per-joint columns `per_joint` only."""
-    joints = {c: np.array(run.per_joint(c)).T for c in per_joint if _has(run, c)}
-    sensors = sensor_columns(run)
-    ticks, times = run.columns["tick"], run.time_s
-    for i in range(len(times)):
-        yield TickSample(
-            int(ticks[i]),
-            float(times[i]),
-            {c: values[i] for c, values in joints.items()},
-            {c: float(run.columns[c][i]) for c in sensors},
-        )
-
-
-def _has(run: RunData, column: str) -> bool:
-    try:
-        run.signal(column, run.joint_names[0])
-    except KeyError:
-        return False
-    return True
 
 
 class TickAssembler:

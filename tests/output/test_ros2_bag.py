@@ -10,14 +10,21 @@ its own type store of ROS 2 Jazzy (not with the bag's schemas), and finds
 - the URDF on /robot_description, latched, its every link in the transform tree; the events,
   the meta and the summary as the run directory holds them.
 
-A testbed run and a short walk of DYROS-JET (its floating base: leg odometry, checked against
-the emulator's own pelvis in an in-process run).
+A testbed run and a short walk of DYROS-JET; the walk's bag as `hil run --ros2` wrote it in
+the log writer's process holds the same messages as the export; a loop killed outright leaves
+a finished bag with every tick it handed over.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -31,31 +38,17 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from hil.cli import main
 from hil.output.ros2_bag import ROS2_BAG_NAME, run_start_ns
 from hil.output.rundir import load_run
-from tests.support.rig import hil_run
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 PER_TICK = ("/joint_states", "/motor_states", "/tf")
 ONCE = ("/tf_static", "/robot_description", "/hil/run_meta", "/hil/run_summary")
 
 
-@pytest.fixture(scope="module")
-def testbed_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    run = hil_run(tmp_path_factory.mktemp("testbed"), "contact", "--duration", "3")
-    assert run.exit_code == 0
-    return run.dir
-
-
-@pytest.fixture(scope="module")
-def walk_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("walk")
-    run = hil_run(out, "walk-slow", "--robot", "dyros-jet", "--duration", "3")
-    assert run.exit_code == 0
-    return run.dir
-
-
 def _export(run_dir: Path) -> Path:
-    assert main(["export", "ros2", str(run_dir)]) == 0
-    return run_dir / ROS2_BAG_NAME
+    bag = run_dir.parent / f"{run_dir.name}-exported.mcap"
+    bag.unlink(missing_ok=True)
+    assert main(["export", "ros2", str(run_dir), "--out", str(bag)]) == 0
+    return bag
 
 
 def _read(bag: Path) -> tuple[dict, dict[str, list]]:
@@ -231,3 +224,88 @@ def test_a_walk_exported_is_read_back_by_rosbags(walk_run: Path) -> None:
     ((_, static),) = messages["/tf_static"]
     assert len(static.transforms) == 16  # the waist and the arms, locked
     assert all(len(m.transforms) == 13 for _, m in messages["/tf"])  # base + 12 leg joints
+
+
+def _raw(bag: Path) -> dict[str, list[tuple[int, int, bytes]]]:
+    from mcap.reader import make_reader
+
+    found: dict[str, list[tuple[int, int, bytes]]] = {}
+    with open(bag, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            found.setdefault(channel.topic, []).append(
+                (message.log_time, message.sequence, message.data)
+            )
+    return found
+
+
+def test_hil_run_ros2_writes_the_bag_the_export_makes(walk_run: Path) -> None:
+    written = walk_run / ROS2_BAG_NAME
+    _check_bag(walk_run, written)
+    assert _raw(written) == _raw(_export(walk_run))  # every message, byte for byte
+
+
+_KILLED_LOOP = textwrap.dedent(
+    """
+    import os, sys
+    from datetime import datetime
+    from pathlib import Path
+    import hil.loop.run_record
+    from hil.config import load_config
+    from hil.experiments import IMPACT
+    from hil.loop.clock import LockstepClock
+    from hil.loop.request import RunRequest
+    from hil.loop.runner import run_experiment
+    from hil.vocabulary import ControllerChoice
+    from hil.wiring.in_process import in_process_bus
+
+    handed = os.open(sys.argv[2], os.O_WRONLY | os.O_CREAT | os.O_APPEND)
+    real = hil.loop.run_record.RunRecord.write_kept
+
+    def write(self):
+        kept = self._kept
+        seconds = real(self)
+        if kept is not None:  # this tick's rows are the writer's now
+            os.write(handed, b"%d\\n" % kept[0][0])
+        return seconds
+
+    hil.loop.run_record.RunRecord.write_kept = write
+    config = load_config()
+    meta = {"config": config.record(), "started": datetime.now().isoformat(timespec="seconds"),
+            "ros2_bag": "run.ros2.mcap"}
+    request = RunRequest(IMPACT, ControllerChoice("pid"), Path(sys.argv[1]), duration_s=60)
+    bus = in_process_bus(config, IMPACT)
+    run_experiment(config, request, bus, LockstepClock(config.loop.period_s), meta)
+    """
+)
+
+
+def test_a_loop_killed_outright_leaves_a_finished_bag_with_every_tick_handed_over(
+    tmp_path: Path,
+) -> None:
+    handed, out = tmp_path / "handed.txt", tmp_path / "run"
+    loop = subprocess.Popen(
+        [sys.executable, "-c", _KILLED_LOOP, str(out), str(handed)],
+        cwd=Path(__file__).resolve().parents[2],
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and len(_lines(handed)) < 300:
+            time.sleep(0.05)
+        os.kill(loop.pid, signal.SIGKILL)
+    finally:
+        loop.wait(timeout=30)
+    last_handed = int(_lines(handed)[-1])
+    bag = out / ROS2_BAG_NAME
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and bag.read_bytes()[-8:] != b"\x89MCAP0\r\n":
+        time.sleep(0.1)  # the writer writes what it holds, then finishes the bag
+    _, messages = _read(bag)  # rosbags reads its index: a finished file
+    run = load_run(out)
+    assert int(run.columns["tick"][-1]) >= last_handed >= 300
+    assert len(messages["/joint_states"]) == len(run.time_s)
+    link = np.array(run.per_joint("link_angle_rad"))[0]
+    assert _same_values([m.position[0] for _, m in messages["/joint_states"]], link)
+
+
+def _lines(path: Path) -> list[str]:
+    return path.read_text().splitlines() if path.exists() else []
