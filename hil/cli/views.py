@@ -14,6 +14,7 @@ from hil.config import ConfigError
 
 def add_view_commands(sub: argparse._SubParsersAction) -> None:
     """`hil export` and `hil render`."""
+    add_render_command(sub)
     export = sub.add_parser(
         "export",
         help="write a finished run in another format (ros2: a ROS 2 bag)",
@@ -45,4 +46,46 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"hil export: {exc}", file=sys.stderr)
         return ExitCode.USAGE
     print(path)
+    return ExitCode.OK
+
+
+def add_render_command(sub: argparse._SubParsersAction) -> None:
+    render = sub.add_parser(
+        "render",
+        help="draw an emulated run's robot: snapshots at chosen instants and a video",
+        description="The robot of a finished run drawn with MuJoCo's offscreen renderer from "
+        "the log (link angles; DYROS-JET's pelvis by leg odometry), side view: snapshots at "
+        "--at instants in one strip (default: for step-on-object the paper's Fig. 8 "
+        "instants, placed at this plan's step onto the box; else five over the run) and, with "
+        "--video, the whole run. Needs OpenGL (the `render` extra and Mesa's EGL or OSMesa).",
+    )
+    render.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run directory")
+    render.add_argument(
+        "--at", type=float, nargs="+", metavar="T", help="run times of the snapshots [s]"
+    )
+    render.add_argument("--out", type=Path, help="the strip's PNG (default: RUN_DIR/render.png)")
+    render.add_argument("--video", type=Path, help="also a video of the run (.mp4 or .gif)")
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from hil.output.rundir import load_run
+    from hil.render.process import GlUnavailable, render_run_dir
+
+    run_dir: Path = args.run_dir
+    if not (run_dir / "log.csv").is_file():
+        raise ConfigError(f"RUN_DIR {run_dir}: no log.csv there (not a run directory)")
+    run = load_run(run_dir)
+    end = float(run.time_s[-1])
+    outside = [t for t in args.at or () if not 0.0 <= t <= end]
+    if outside:
+        raise ConfigError(f"--at {outside}: outside the run (0 to {end:g} s)")
+    if args.video is not None and args.video.suffix.lower() not in (".mp4", ".gif"):
+        raise ConfigError(f"--video {args.video}: name an .mp4 or a .gif")
+    try:
+        written = render_run_dir(run_dir, args.at, args.out or run_dir / "render.png", args.video)
+    except GlUnavailable as exc:
+        print(f"hil render: {exc}", file=sys.stderr)
+        return ExitCode.USAGE
+    for path in written:
+        print(path)
     return ExitCode.OK
