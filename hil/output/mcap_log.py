@@ -13,7 +13,7 @@ and `Writer.add_message` for each; `hil bench log` measures it.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from mcap.writer import CompressionType, Writer
 
@@ -63,7 +63,12 @@ class McapSink:
         if self.closed:
             return
         self.closed = True
-        try:
-            self._writer.finish()
-        finally:
-            self._file.close()
+        finish(self._writer, self._file)
+
+
+def finish(writer: Writer, file: BinaryIO) -> None:
+    """An MCAP file finished (its summary and index written) and closed, even if that fails."""
+    try:
+        writer.finish()
+    finally:
+        file.close()

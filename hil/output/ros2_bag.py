@@ -243,10 +243,9 @@ class Ros2Bag:
         if self.closed:
             return
         self.closed = True
-        try:
-            self._writer.finish()
-        finally:
-            self._file.close()
+        from hil.output.mcap_log import finish
+
+        finish(self._writer, self._file)
 
 
 def _tf_message(transforms: Iterable[FrameTransform], time_ns: int) -> dict[str, Any]:

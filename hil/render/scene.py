@@ -202,28 +202,12 @@ def _staged(mjcf: str, floor_z_m: float) -> str:
     ET.SubElement(visual, "headlight", ambient="0.4 0.4 0.4", diffuse="0.5 0.5 0.5")
     ET.SubElement(visual, "global", offwidth="1920", offheight="1080")
     asset = ET.SubElement(root, "asset")
-    ET.SubElement(
-        asset,
-        "texture",
-        name="sky",
-        type="skybox",
-        builtin="gradient",
-        rgb1="0.93 0.95 0.98",
-        rgb2="0.75 0.80 0.88",
-        width="256",
-        height="256",
-    )
-    ET.SubElement(
-        asset,
-        "texture",
-        name="chequer",
-        type="2d",
-        builtin="checker",
-        rgb1="0.86 0.86 0.84",
-        rgb2="0.74 0.74 0.72",
-        width="256",
-        height="256",
-    )
+    for name, kind, builtin, rgb1, rgb2 in (
+        ("sky", "skybox", "gradient", "0.93 0.95 0.98", "0.75 0.80 0.88"),
+        ("chequer", "2d", "checker", "0.86 0.86 0.84", "0.74 0.74 0.72"),
+    ):
+        ET.SubElement(asset, "texture", name=name, type=kind, builtin=builtin, rgb1=rgb1,
+                      rgb2=rgb2, width="256", height="256")  # fmt: skip
     ET.SubElement(asset, "material", name="floor", texture="chequer", texrepeat="8 8",
                   reflectance="0")  # fmt: skip
     world = root.find("worldbody")
