@@ -298,3 +298,22 @@ def test_a_loop_killed_outright_leaves_a_finished_bag_with_every_tick_handed_ove
 
 def _lines(path: Path) -> list[str]:
     return path.read_text().splitlines() if path.exists() else []
+
+
+def test_without_the_ros2_extra_the_user_is_told_to_install_it(
+    testbed_run: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture,
+) -> None:
+    import hil.output.ros2_bag as ros2_bag
+
+    monkeypatch.setitem(sys.modules, "mcap_ros2._dynamic", None)  # import fails, as uninstalled
+    monkeypatch.setattr(ros2_bag, "ros2_support_installed", lambda: False)
+    out = tmp_path / "bag.mcap"
+    assert main(["export", "ros2", str(testbed_run), "--out", str(out)]) == 2
+    assert ros2_bag.MISSING_EXTRA in capsys.readouterr().err
+    runs = tmp_path / "runs"
+    assert main(["run", "contact", "--ros2", "--duration", "1", "--out", str(runs)]) == 2
+    assert ros2_bag.MISSING_EXTRA in capsys.readouterr().err
+    assert not list(runs.glob("*/log.csv"))  # refused before the run began
