@@ -15,6 +15,8 @@
     hil bench bus|loop|soak|sweep [--json]
     hil config                 print the sample configuration file
     hil model [--robot R | --config FILE] [--json]   each joint's static compliance
+    hil export ros2 RUN_DIR [--out FILE]   the run as a ROS 2 bag (the `ros2` extra)
+    hil render RUN_DIR [--at T ...] [--out PNG] [--video FILE]   the robot drawn (`render`)
 
 Exit status (`ExitCode`): 0 success, 1 the run ended in a safety stop or failed, 2 bad
 arguments or bad configuration (nothing was sent to any device), 3 torque could not be turned
@@ -133,6 +135,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.sweep import cmd_sweep
 
         return cmd_sweep(args)
+    if args.command in ("export", "render"):
+        from hil.cli.views import cmd_export, cmd_render
+
+        return cmd_export(args) if args.command == "export" else cmd_render(args)
     if args.command == "bench":
         from hil.cli.bench import cmd_bench
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import hil
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES, GC_COMPLIANCES
+from hil.cli.views import add_view_commands
 from hil.config import BUILT_IN_CONFIGS
 from hil.experiments import EXPERIMENTS
 from hil.session.comparison import NAMED_COMPARISONS
@@ -128,6 +129,12 @@ def _add_run_output(run: argparse.ArgumentParser) -> None:
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument(
         "--no-mcap", action="store_true", help="do not write run.mcap beside the CSV log"
+    )
+    run.add_argument(
+        "--ros2",
+        action="store_true",
+        help="also write the run as a ROS 2 bag, run.ros2.mcap (the `ros2` extra; "
+        "`hil export ros2 RUN_DIR` makes one after the run)",
     )
     run.add_argument(
         "--live",
@@ -257,6 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_identify(sub)
     _add_compare(sub)
     _add_sweep(sub)
+    add_view_commands(sub)  # hil export, hil render
 
     _add_bringup(sub)
     config = sub.add_parser("config", help="print a built-in configuration file (a template)")

@@ -119,6 +119,16 @@ def _check_combinations(args: argparse.Namespace, embedded: bool, faults: tuple)
         raise ConfigError(f"--duration: {problem}")
 
 
+def _check_ros2(args: argparse.Namespace) -> None:
+    """--ros2: the `ros2` extra installed, said before anything starts."""
+    if not args.ros2:
+        return
+    from hil.output.ros2_bag import MISSING_EXTRA, ros2_support_installed
+
+    if not ros2_support_installed():
+        raise ConfigError(f"--ros2: {MISSING_EXTRA}")
+
+
 def _live(args: argparse.Namespace) -> tuple[MessageSink, ...]:
     """--live: the Foxglove WebSocket server (loopback unless --live-host names another)."""
     if not args.live:
@@ -263,6 +273,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     else:
         check_designs(config, comparison_runs(config, named))
     _check_out(args, config)
+    _check_ros2(args)
     setup = Setup.EMBEDDED if embedded else Setup.ATTACHED if args.attach else Setup.HARDWARE
     sinks = _live(args)
     try:
@@ -292,6 +303,7 @@ def _run(
         plots=not args.no_plots,
         json_output=args.json,
         mcap=not args.no_mcap,
+        ros2=args.ros2,
         sinks=sinks,
     )
     stop = StopFlag()

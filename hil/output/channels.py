@@ -15,9 +15,9 @@ JSON null.
     /run/meta      once, at the start: meta.json
     /run/summary   once, at the end: summary.json
 
-Frame transforms (the humanoid's links) will be a further channel with Foxglove's
-`foxglove.FrameTransforms` schema: `ChannelSet.add` takes any (topic, schema) and the sinks
-carry it like the others (the hook is `RunLog.publish`).
+Further channels derived from these (the robot in 3D: hil/output/robot_view.py) may be in
+another encoding: a Channel names its message and schema encodings, and carries its schema's
+bytes when it is not a JSON schema (Foxglove's protobuf schemas).
 """
 
 from __future__ import annotations
@@ -60,9 +60,14 @@ class Channel:
     schema_name: str
     schema: dict[str, Any]
     metadata: dict[str, str] = field(default_factory=dict)
+    message_encoding: str = "json"
+    schema_encoding: str = "jsonschema"
+    schema_data: bytes | None = None  # the schema's bytes when it is not `schema` (JSON)
 
     @property
     def schema_bytes(self) -> bytes:
+        if self.schema_data is not None:
+            return self.schema_data
         return json.dumps(self.schema).encode()
 
 
@@ -127,8 +132,13 @@ class ChannelSet:
         schema_name: str,
         schema: dict[str, Any],
         metadata: dict[str, str] | None = None,
+        **encoding: Any,
     ) -> Channel:
-        channel = Channel(len(self.channels), topic, schema_name, schema, metadata or {})
+        """A further channel (`encoding`: Channel's message_encoding, schema_encoding and
+        schema_data, when not JSON)."""
+        channel = Channel(
+            len(self.channels), topic, schema_name, schema, metadata or {}, **encoding
+        )
         self.channels.append(channel)
         return channel
 

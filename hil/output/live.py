@@ -53,12 +53,12 @@ class LivePublisher:
         if old is not None:  # a new run: its channels replace the last run's
             old.close()
         schema = self._foxglove.Schema(
-            name=channel.schema_name, encoding="jsonschema", data=channel.schema_bytes
+            name=channel.schema_name, encoding=channel.schema_encoding, data=channel.schema_bytes
         )
         self._channels[channel.id] = self._foxglove.Channel(
             channel.topic,
             schema=schema,
-            message_encoding="json",
+            message_encoding=channel.message_encoding,
             context=self.context,
             metadata=channel.metadata,
         )

@@ -13,9 +13,8 @@ and `Writer.add_message` for each; `hil bench log` measures it.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
-from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
 from hil.output.channels import Channel
@@ -45,10 +44,10 @@ class McapSink:
 
     def add_channel(self, channel: Channel) -> None:
         schema_id = self._writer.register_schema(
-            channel.schema_name, SchemaEncoding.JSONSchema, channel.schema_bytes
+            channel.schema_name, channel.schema_encoding, channel.schema_bytes
         )
         self._ids[channel.id] = self._writer.register_channel(
-            channel.topic, MessageEncoding.JSON, schema_id, channel.metadata
+            channel.topic, channel.message_encoding, schema_id, channel.metadata
         )
         self._sequence[channel.id] = 0
 
@@ -64,7 +63,12 @@ class McapSink:
         if self.closed:
             return
         self.closed = True
-        try:
-            self._writer.finish()
-        finally:
-            self._file.close()
+        finish(self._writer, self._file)
+
+
+def finish(writer: Writer, file: BinaryIO) -> None:
+    """An MCAP file finished (its summary and index written) and closed, even if that fails."""
+    try:
+        writer.finish()
+    finally:
+        file.close()

@@ -52,7 +52,9 @@ def create_run_dir(root: Path, name: str) -> Path:
 # What a run's record takes per tick (log.csv + timing.csv, and run.mcap), measured on 2 s
 # in-process runs: the testbed (1 joint, a force sensor) 192 B without run.mcap, 1095 B with
 # it; DYROS-JET's legs (12 joints, two foot sensors) 1563 B and 4795 B. A line through the two.
-_RECORD_BYTES_PER_TICK = {False: (67.0, 125.0), True: (759.0, 336.0)}  # (base, per joint)
+# With the robot's frames in run.mcap (hil/output/robot_view.py; 2 s impact and stand runs of
+# `hil run`): 1239 B and 5959 B.
+_RECORD_BYTES_PER_TICK = {False: (67.0, 125.0), True: (810.0, 429.0)}  # (base, per joint)
 
 
 def estimated_record_bytes(ticks: int, n_joints: int, mcap: bool) -> float:

@@ -40,6 +40,7 @@ import numpy as np
 from hil.output import channels as ch
 from hil.output.channels import Channel, ChannelSet, MessageSink, encode_document
 from hil.output.strict_json import dumps, plain
+from hil.output.views import attach_views
 
 MEASURED_JOINT_COLUMNS = (
     "reference_rad",
@@ -174,6 +175,7 @@ class RunLog:
 
             self.mcap = McapSink(self.dir / MCAP_NAME)
         self._sinks: list[MessageSink] = [*([self.mcap] if self.mcap else []), *sinks]
+        self._sinks, self._views = attach_views(self, meta, self._sinks)  # 3D view, ROS 2 bag
         for sink in self._sinks:
             for channel in self.channels.channels:
                 sink.add_channel(channel)
@@ -307,6 +309,8 @@ class RunLog:
         """run.mcap finished (its index written); later messages go to the CSV files only."""
         if self.mcap is not None:
             self.mcap.close()
+        for view in self._views:
+            view.close()
         self._sinks = []
 
     def close(self) -> None:

@@ -53,6 +53,7 @@ from hil.output.records import RunEntry
 from hil.output.report import Report, ReportContent, write_report
 from hil.output.rundir import create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
+from hil.render.report_strip import FIG8_RENDERED, rendered_fig8
 from hil.session.plan import (
     PlannedRun,
     incomplete_reason,
@@ -176,9 +177,13 @@ def run_comparison(
         outcome.wall_time_s,
         humanoid=humanoid,
         walking=named == "walking",
+        rendered=named == "walking" and session.plots,
     )
     print(report.table_text)
     print(f"report: {report.markdown_path}")
+    drawn = [p for p in report.figure_paths if p.name == FIG8_RENDERED]
+    if drawn:
+        print(f"Fig. 8 drawn from the emulated robot: {drawn[0]}")
     if session.json_output:
         print(dumps(report.summary))
     if outcome.incomplete is not None:
@@ -294,8 +299,10 @@ def write_comparison_report(
     *,
     humanoid: bool = False,
     walking: bool = False,
+    rendered: bool = False,
 ) -> Report:
-    """The report of the comparison (figures, relations, tables) for these runs."""
+    """The report of the comparison (figures, relations, tables) for these runs; rendered:
+    with the robot drawn at Fig. 8's instants (hil/render/report_strip.py)."""
     relations = []
     figures: list[Path] = []
     problems: list[str] = []
@@ -321,6 +328,10 @@ def write_comparison_report(
             continue
         if path is not None:
             figures.append(path)
+    if rendered:
+        drawn, missing = rendered_fig8(root, entries)
+        figures += drawn
+        problems += missing
     title = (
         "DYROS-JET standing and pushed: Kim et al., ICRA 2018, Sec. IV-C"
         if humanoid

@@ -33,10 +33,12 @@ from hil.output.channels import MessageSink
 from hil.output.plots import plot_run
 from hil.output.progress import Progress
 from hil.output.records import UNMEASURED, RunResult
+from hil.output.ros2_bag import ROS2_BAG_NAME
 from hil.output.rundir import add_to_summary, create_run_dir, load_run, timestamp
 from hil.output.series import write_series
 from hil.output.strict_json import dumps
 from hil.output.versions import package_versions
+from hil.output.views import ROS2_BAG_KEY
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, EmulatorStartError, emulator_spec
@@ -86,6 +88,7 @@ class Session:
     json_output: bool = False
     quiet: bool = False
     mcap: bool = True  # run.mcap beside the CSV log
+    ros2: bool = False  # run.ros2.mcap, a ROS 2 bag, beside it (hil/output/views.py)
     # A bar over several runs (the comparison): lines go above it, a run's progress moves it
     # from `progress_done` (runs finished) towards the next whole run.
     progress: Progress | None = None
@@ -230,6 +233,8 @@ class Session:
             with self.bus(experiment, faults, clock) as (bus, connection):
                 meta = self._meta(experiment, choice, faults, overruns, clock, connection)
                 meta["bus"] = bus.describe()
+                if self.ros2:
+                    meta[ROS2_BAG_KEY] = ROS2_BAG_NAME
                 result = run_experiment(self.config, request, bus, clock, meta, stop=stop)
         except BaseException:
             if created:  # the run never began (the emulator did not start): no empty directory

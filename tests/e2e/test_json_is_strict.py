@@ -24,7 +24,11 @@ from hil.output.strict_json import strict_loads
 def _mcap_documents(path: Path) -> tuple[list[object], dict[str, dict[str, str]]]:
     with open(path, "rb") as f:
         reader = make_reader(f)
-        messages = [strict_loads(m.data.decode()) for _s, _c, m in reader.iter_messages()]
+        messages = [
+            strict_loads(m.data.decode())
+            for _s, c, m in reader.iter_messages()
+            if c.message_encoding == "json"  # (the 3D view's /tf is protobuf)
+        ]
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
     return messages, metadata
 

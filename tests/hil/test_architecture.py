@@ -40,6 +40,7 @@ HIL_LAYERS = {
     },
     "hil.identify": {"hil.vocabulary", "hil.output"},
     "hil.bringup": {"hil.vocabulary", "hil.config"},
+    "hil.render": {"hil.vocabulary", "hil.output", "hil.experiments"},
     "hil.session": {
         "hil.vocabulary",
         "hil.controllers",
@@ -49,6 +50,7 @@ HIL_LAYERS = {
         "hil.safety",
         "hil.wiring",
         "hil.loop",
+        "hil.render",
     },
     "hil.bench": {
         "hil.vocabulary",
@@ -95,6 +97,7 @@ HIL_LAYERS = {
         "hil.identify",
         "hil.bringup",
         "hil.sweep",
+        "hil.render",
     },
 }
 

@@ -43,12 +43,13 @@ class Subscriber(threading.Thread):
     def __init__(self, url: str) -> None:
         super().__init__(daemon=True)
         self.url = url
-        self.received: list[tuple[str, dict]] = []
+        self.received: list[tuple[str, dict | bytes]] = []
         self.subscribed = threading.Event()
         self.done = threading.Event()
 
     def run(self) -> None:
         topics: dict[int, str] = {}
+        encodings: dict[int, str] = {}
         with connect(self.url, subprotocols=SUBPROTOCOLS) as ws:
             while not self.done.is_set():
                 try:
@@ -62,12 +63,16 @@ class Subscriber(threading.Thread):
                             {"id": c["id"], "channelId": c["id"]} for c in message["channels"]
                         ]
                         topics.update({c["id"]: c["topic"] for c in message["channels"]})
+                        encodings.update({c["id"]: c["encoding"] for c in message["channels"]})
                         ws.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
-                        if len(topics) == len(ChannelSet([], [], []).channels):
+                        if len(topics) >= len(ChannelSet([], [], []).channels):
                             self.subscribed.set()
                 elif frame[0] == MESSAGE_DATA:
                     subscription, _log_time = struct.unpack_from("<IQ", frame, 1)
-                    self.received.append((topics[subscription], json.loads(frame[13:])))
+                    payload = frame[13:]
+                    if encodings[subscription] == "json":  # (the 3D view's /tf: protobuf)
+                        payload = json.loads(payload)
+                    self.received.append((topics[subscription], payload))
 
 
 def test_the_server_listens_on_loopback_only_by_default() -> None:
@@ -118,6 +123,7 @@ def test_a_websocket_client_receives_the_runs_channels_live(tmp_path: Path) -> N
         assert float(row["link_angle_rad"]) == pytest.approx(joint["link_angle_rad"][0], abs=1e-9)
     topics = {topic for topic, _ in subscriber.received}
     assert {"/joints", "/loop", "/timing", "/run/summary"} <= topics
+    assert {"/tf", "/tf_static", "/robot_description"} <= topics  # the robot in 3D
 
 
 @pytest.mark.timing
