@@ -2,7 +2,7 @@
 for 4 s with the actuator's own position control (pid) and with the paper's controller
 (gc+lqr+dob), then
 
-- the loader (hil/output/run_data.py): each run's signals as numpy arrays, and its whole log
+- the loader (`hil.load_run`): each run's signals as numpy arrays, and its whole log
   as one long table, a row per tick and joint (a pandas DataFrame with the `analysis` extra:
   pip install 'flexjoint-hil[analysis]');
 - a figure of your own from the arrays: both runs' contact force (contact_force.png);
@@ -22,13 +22,12 @@ import sys
 from pathlib import Path
 
 import hil
-from hil.output.run_data import load_run
 
 out = Path(os.environ.get("HIL_EXAMPLE_OUT", "runs"))
 testbed = hil.open_robot(robot="testbed", out_root=out)
 paths = [testbed.run("contact", name, duration_s=4.0).out_dir for name in ("pid", "gc+lqr+dob")]
 
-runs = [load_run(path) for path in paths]
+runs = [hil.load_run(path) for path in paths]
 for run in runs:
     force = run.signal("contact_force_n")  # a run-wide sensor: no joint to name
     deflection = run.signal("deflection_rad")  # the testbed's one joint: no need to name it

@@ -7,6 +7,8 @@ The public surface, one page (each name is documented where it is defined):
                         the robot a configuration describes, a run of an experiment on it,
                         and your own 200 Hz loop through the supervisor (hil/api.py)
     RunResult           how a run ended, its metrics, its directory, its exit status
+    load_run, Run       a run directory read back: arrays per signal and joint, a long table
+                        (hil/output/run_data.py; `hil compare` overlays runs)
     JointSample         one reading of every joint, in SI units (drivers/joint_bus.py)
     Controller, ControllerParams, ControllerSetup, ControlInput
                         the controller contract: write your own (hil/controllers/contract.py)
@@ -43,10 +45,12 @@ _EXPORTS = {
     "JointSample": "drivers.joint_bus",
     "Robot": "hil.api",
     "RobotLoop": "hil.api",
+    "Run": "hil.output.run_data",
     "RunResult": "hil.output.records",
     "RunStopped": "hil.api",
     "Setup": "hil.api",
     "World": "hil.experiments.base",
+    "load_run": "hil.output.run_data",
     "open_robot": "hil.api",
     "ControlInput": "hil.controllers.contract",
     "Controller": "hil.controllers.contract",
@@ -64,11 +68,13 @@ __all__ = [
     "JointSample",
     "Robot",
     "RobotLoop",
+    "Run",
     "RunResult",
     "RunStopped",
     "Setup",
     "World",
     "__version__",
+    "load_run",
     "open_robot",
 ]
 
@@ -84,6 +90,7 @@ if TYPE_CHECKING:
     )
     from hil.experiments.base import Experiment, World
     from hil.output.records import RunResult
+    from hil.output.run_data import Run, load_run
 
 
 def __getattr__(name: str) -> object:
