@@ -326,8 +326,10 @@ class RobotLoop:
     def _open(self, session: Session, config: Config) -> None:
         clock = session.clock()
         self._clock = clock
-        bus, connection = self._stack.enter_context(session.bus(self.experiment, (), clock))
         out_dir = self._out_dir or create_run_dir(session.out_root, f"{timestamp()}-{self.name}")
+        bus, connection = self._stack.enter_context(
+            session.bus(self.experiment, (), clock, out_dir)
+        )
         meta = {
             "experiment": self.name,
             "controller": "your loop",

@@ -80,6 +80,12 @@ class EmulatedHardware(SteppedPlant, Protocol):
     # follows the wall clock from power-on (the testbed's link hangs on its spring meanwhile).
     held_until_started: bool
 
+    # What no sensor reports, for the emulator's truth log (sim_backend/truth_log.py): the
+    # names of `truth_row()`'s values (none: nothing to log)
+    truth_columns: tuple[str, ...]
+
+    def truth_row(self) -> Sequence[float]: ...
+
 
 def sensor_nodes(hardware: EmulatedHardware) -> list[object]:
     """Every CAN node of the hardware (encoders, force sensor, force/torque sensors)."""
@@ -202,6 +208,10 @@ class EmulatedTestbed(PlantClock):
     """The 1-DoF testbed (or n copies of it): a plant per joint behind its H54 firmware."""
 
     held_until_started = False
+    truth_columns: tuple[str, ...] = ()  # every state of the testbed is on its buses
+
+    def truth_row(self) -> Sequence[float]:
+        return ()
 
     def __init__(
         self,

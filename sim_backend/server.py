@@ -51,6 +51,7 @@ from sim_backend.spec import (  # re-exported: the emulator's spec is built by h
     HumanoidSpec,
     SensorNoise,
 )
+from sim_backend.truth_log import TruthLog
 
 __all__ = [
     "CLOCKS",
@@ -102,6 +103,7 @@ class Emulator:
         self._wake_read, self._wake_write = os.pipe()
         os.set_blocking(self._wake_read, False)
         os.set_blocking(self._wake_write, False)
+        self.truth = TruthLog(spec.truth_log, self.hardware.truth_columns, self.hardware.truth_row)
         self._wall_origin = time.monotonic()
         self._step_cost_s = 0.0  # realtime: what a physics step takes here (a running mean)
 
@@ -213,6 +215,7 @@ class Emulator:
             self.line.drain()  # goals written before this SYNC act over the coming period
             if self.sync_count > 0:
                 self.testbed.advance(self.spec.period_s)
+        self.truth.write(self.sync_count, self.testbed.time_s)
         self.sync_count += 1
         self._apply_faults()
 
@@ -279,6 +282,7 @@ class Emulator:
                 self._node_faults_changed = True
 
     def close(self) -> None:
+        self.truth.close()
         self.line.close()
         self.slcan.close()
         for fd in (self._wake_read, self._wake_write):

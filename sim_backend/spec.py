@@ -121,6 +121,7 @@ class EmulatorSpec:
     humanoid: HumanoidSpec | None = None
     usb_latency_timer_s: float = 0.0  # the USB-serial adapter's, realtime only (line.py)
     can_bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S  # a CAN node's restart after NMT reset
+    truth_log: str = ""  # where the emulator writes its ground truth per SYNC ("" none)
 
     def __post_init__(self) -> None:
         if not self.joints:

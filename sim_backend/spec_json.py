@@ -45,6 +45,7 @@ def spec_from_json(text: str) -> EmulatorSpec:
         sensor_noise=SensorNoise(**raw["sensor_noise"]),
         usb_latency_timer_s=raw["usb_latency_timer_s"],
         can_bootup_delay_s=raw["can_bootup_delay_s"],
+        truth_log=raw.get("truth_log", ""),
         robot=raw["robot"],
         humanoid=HumanoidSpec(
             urdf_text=humanoid["urdf_text"],

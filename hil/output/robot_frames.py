@@ -6,10 +6,12 @@
     static   every other joint: fixed joints, and the humanoid's waist and arms, which the
              controller's model locks at its upper-body posture (the emulator welds them there)
 
-The humanoid's floating base is not in log.csv (the emulator's truth stays in the emulator):
-it is estimated by leg odometry on the same model (`StanceFootOdometry`): the stance foot stays
-where it landed and the pelvis hangs from it through the measured leg angles. BASE_POSE_NOTE
-says so wherever the base pose is published.
+The humanoid's floating base is not in log.csv (no sensor of the robot measures it). Where an
+embedded emulator ran the robot, its ground truth is beside the run (emulator_truth.csv,
+sim_backend/truth_log.py: `BaseTruth`), and a finished run's viewers use it (TRUTH_NOTE says
+so); otherwise, and live, it is estimated by leg odometry on the same model
+(`StanceFootOdometry`): the stance foot stays where it landed and the pelvis hangs from it
+through the measured leg angles (BASE_POSE_NOTE says so).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -36,6 +39,11 @@ BASE_POSE_NOTE = (
     "more) is held where it landed, the pelvis placed from it through the measured link "
     "angles; at the start the soles' midpoint is at the origin and the stance sole flat at z = 0"
 )
+TRUTH_NOTE = (
+    "world -> base_link is the emulator's ground truth (its pelvis pose in its world, "
+    "emulator_truth.csv), not a measurement: the robot's own sensors do not report it"
+)
+TRUTH_LOG_NAME = "emulator_truth.csv"  # (sim_backend/truth_log.py writes it)
 # A foot becomes the stance foot when it carries this fraction of the feet's vertical load
 # more than the stance foot does (no chatter while both are loaded alike)
 STANCE_SWITCH_MARGIN = 0.2
@@ -71,11 +79,48 @@ def _urdf_joints(urdf: str) -> list[_UrdfJoint]:
     ]
 
 
-class RobotFrames:
-    """The transforms of a run's robot (module docstring); `None`-free: a robot without a
-    description has no frames (`RobotFrames.of` returns None)."""
+class BaseTruth:
+    """The emulator's pelvis pose per SYNC (emulator_truth.csv), looked up by the run's time."""
 
-    def __init__(self, robot: RunRobot) -> None:
+    def __init__(self, time_s: np.ndarray, positions: np.ndarray, quaternions: np.ndarray) -> None:
+        self.time_s = time_s
+        self.positions = positions  # (n, 3) [m]
+        self.quaternions = quaternions  # (n, 4): x, y, z, w
+
+    @classmethod
+    def of_run(cls, run_dir: Path) -> BaseTruth | None:
+        """The truth beside a run, or None (not emulated by an embedded emulator, or torn)."""
+        path = Path(run_dir) / TRUTH_LOG_NAME
+        try:
+            table = np.genfromtxt(path, delimiter=",", names=True, invalid_raise=False)
+        except (OSError, ValueError):
+            return None
+        names = table.dtype.names or ()
+        wanted = ("base_x_m", "base_y_m", "base_z_m", "base_qx", "base_qy", "base_qz", "base_qw")
+        if table.size == 0 or "time_s" not in names or not set(wanted) <= set(names):
+            return None
+        table = np.atleast_1d(table)
+        columns = np.column_stack([table[name] for name in wanted])
+        return cls(np.asarray(table["time_s"]), columns[:, :3], columns[:, 3:])
+
+    def at(self, time_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(position, quaternion x y z w) at the run's time, None where the truth has no row
+        within a millisecond of it."""
+        i = int(np.searchsorted(self.time_s, time_s))
+        near = [j for j in (i - 1, i) if 0 <= j < len(self.time_s)]
+        if not near:
+            return None
+        best = min(near, key=lambda j: abs(self.time_s[j] - time_s))
+        if abs(self.time_s[best] - time_s) > 1e-3:
+            return None
+        return self.positions[best], self.quaternions[best]
+
+
+class RobotFrames:
+    """The transforms of a run's robot (module docstring); a robot without a description has
+    no frames (`robot_frames` returns None). `truth`: the emulator's pelvis pose, if known."""
+
+    def __init__(self, robot: RunRobot, truth: BaseTruth | None = None) -> None:
         import pinocchio as pin
 
         assert robot.urdf is not None
@@ -99,6 +144,7 @@ class RobotFrames:
             self._q_index = np.array(
                 [self.model.joints[self.model.getJointId(n)].idx_q for n in self.joint_names]
             )
+        self._truth = truth if robot.floating_base else None
         moved = set(self.joint_names)
         self._moving = [j for j in joints if j.name in moved]
         self._frames = {
@@ -115,13 +161,24 @@ class RobotFrames:
 
     @property
     def base_estimated(self) -> bool:
-        return self._odometry is not None
+        return self._odometry is not None and self._truth is None
+
+    @property
+    def base_note(self) -> str:
+        """Where world -> base_link comes from, for the channels' metadata ("" no base)."""
+        if self._odometry is None:
+            return ""
+        return TRUTH_NOTE if self._truth is not None else BASE_POSE_NOTE
 
     def at(
-        self, link_angles_rad: np.ndarray, sensors: Mapping[str, float]
+        self,
+        link_angles_rad: np.ndarray,
+        sensors: Mapping[str, float],
+        time_s: float | None = None,
     ) -> list[FrameTransform] | None:
         """The moving transforms at these link angles (joint order), `sensors` the tick's
-        sensor columns (the feet's loads for the odometry); None while an angle is not read."""
+        sensor columns (the feet's loads for the odometry), `time_s` the run's time (for the
+        truth); None while an angle is not read."""
         angles = np.asarray(link_angles_rad, dtype=float)
         if not np.all(np.isfinite(angles)):
             return None
@@ -130,12 +187,27 @@ class RobotFrames:
         transforms = []
         if self._odometry is not None:
             assert self._base is not None
-            base = self._odometry.base_pose(self.data.oMf, sensors)
-            transforms.append(
-                _transform(self._base.parent, self._base.child, base.translation, base.rotation)
-            )
+            base = self._odometry.base_pose(self.data.oMf, sensors)  # (kept up to date)
+            pose = self._truth_at(time_s)
+            if pose is not None:
+                transforms.append(FrameTransform(self._base.parent, self._base.child, *pose))
+            else:
+                transforms.append(
+                    _transform(self._base.parent, self._base.child, base.translation, base.rotation)
+                )
         transforms.extend(self._relative(j) for j in self._moving)
         return transforms
+
+    def _truth_at(
+        self, time_s: float | None
+    ) -> tuple[tuple[float, float, float], tuple[float, float, float, float]] | None:
+        if self._truth is None or time_s is None:
+            return None
+        found = self._truth.at(time_s)
+        if found is None:
+            return None
+        (tx, ty, tz), (qx, qy, qz, qw) = found[0].tolist(), found[1].tolist()
+        return (tx, ty, tz), (qx, qy, qz, qw)
 
     def _forward(self, q: np.ndarray) -> None:
         self._pin.forwardKinematics(self.model, self.data, q)
@@ -147,9 +219,9 @@ class RobotFrames:
         return _transform(joint.parent, joint.child, placement.translation, placement.rotation)
 
 
-def robot_frames(robot: RunRobot) -> RobotFrames | None:
+def robot_frames(robot: RunRobot, truth: BaseTruth | None = None) -> RobotFrames | None:
     """The frames of a run's robot, or None if there is no description of it."""
-    return RobotFrames(robot) if robot.urdf is not None else None
+    return RobotFrames(robot, truth) if robot.urdf is not None else None
 
 
 def _transform(

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 from hil.output.channels import Channel, ChannelSet, encode
 from hil.output.robot_description import RunRobot
-from hil.output.robot_frames import BASE_POSE_NOTE, FrameTransform, RobotFrames, robot_frames
+from hil.output.robot_frames import FrameTransform, RobotFrames, robot_frames
 from hil.output.tick_sample import TickSample
 
 if TYPE_CHECKING:
@@ -59,7 +59,7 @@ class RobotView:
             "schema_encoding": schema.encoding,
             "schema_data": bytes(schema.data),
         }
-        note = {"hil.note": BASE_POSE_NOTE} if frames.base_estimated else {}
+        note = {"hil.note": frames.base_note} if frames.base_note else {}
         self.tf = channels.add(TF_TOPIC, schema.name, {}, note, **protobuf)
         self.tf_static = channels.add(TF_STATIC_TOPIC, schema.name, {}, {}, **protobuf)
         text = {"type": "object", "properties": {"data": {"type": "string"}}}

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 
 from hil.output import ros2_messages as msg
 from hil.output.robot_description import RunRobot
-from hil.output.robot_frames import BASE_POSE_NOTE, FrameTransform, robot_frames
+from hil.output.robot_frames import BaseTruth, FrameTransform, robot_frames
 from hil.output.strict_json import dumps, plain
 from hil.output.tick_sample import TickSample
 
@@ -108,7 +108,9 @@ def event_level(record: dict[str, Any]) -> int:
 class Ros2Bag:
     """Writes one bag (module docstring); `close()` finishes it (safe twice)."""
 
-    def __init__(self, path: Path, robot: RunRobot, meta: dict[str, Any]) -> None:
+    def __init__(
+        self, path: Path, robot: RunRobot, meta: dict[str, Any], truth: BaseTruth | None = None
+    ) -> None:
         try:
             from mcap_ros2._dynamic import serialize_dynamic  # the encoder its Writer uses
         except ImportError:
@@ -118,7 +120,7 @@ class Ros2Bag:
 
         self.path = Path(path)
         self.robot = robot
-        self.frames = robot_frames(robot)
+        self.frames = robot_frames(robot, truth)
         self.start_ns = run_start_ns(meta)
         self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
         self._writer = Writer(
@@ -143,8 +145,7 @@ class Ros2Bag:
         for sensor in robot.force_sensors:
             self._channel(f"/{sensor.name}/wrench", msg.WRENCH_STAMPED, STREAM, sensor.note)
         if self.frames is not None:
-            base = BASE_POSE_NOTE if self.frames.base_estimated else ""
-            self._channel("/tf", msg.TF_MESSAGE, TF_STREAM, base)
+            self._channel("/tf", msg.TF_MESSAGE, TF_STREAM, self.frames.base_note)
             self._channel("/tf_static", msg.TF_MESSAGE, LATCHED, "")
         if robot.viewer_urdf is not None:
             self._channel("/robot_description", msg.STRING, LATCHED, "")
@@ -216,7 +217,7 @@ class Ros2Bag:
                     "wrench": wrench}},
             )  # fmt: skip
         if self.frames is not None:
-            transforms = self.frames.at(link, sample.sensors)
+            transforms = self.frames.at(link, sample.sensors, sample.time_s)
             if transforms is not None:
                 self._write("/tf", t, _tf_message(transforms, t))
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from hil.output.robot_description import robot_of_run
+from hil.output.robot_frames import BaseTruth
 from hil.output.ros2_bag import ROS2_BAG_NAME, Ros2Bag
 from hil.output.run_samples import run_joint_names, samples_of_run, sensor_columns
 from hil.output.rundir import load_run
@@ -17,7 +18,7 @@ def export_ros2(run_dir: Path, out: Path | None = None) -> Path:
     run = load_run(run_dir)
     path = Path(out) if out is not None else run.out_dir / ROS2_BAG_NAME
     robot = robot_of_run(run.meta, run_joint_names(run), sensor_columns(run))
-    bag = Ros2Bag(path, robot, run.meta)
+    bag = Ros2Bag(path, robot, run.meta, BaseTruth.of_run(run.out_dir))
     try:
         records = sorted(run.events, key=lambda e: float(e.get("time_s") or 0.0))
         pending = iter(records)

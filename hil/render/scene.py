@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hil.output.robot_description import RobotKind, RunRobot, robot_of_run
-from hil.output.robot_frames import RobotFrames, robot_frames
+from hil.output.robot_frames import BaseTruth, RobotFrames, robot_frames
 from hil.output.run_samples import run_joint_names, sensor_columns
 from hil.output.rundir import RunData
 
@@ -63,7 +63,10 @@ class RunScene:
         self.data = mujoco.MjData(self.model)
         self._link = np.array(run.per_joint("link_angle_rad"))
         self._motor = np.array(run.per_joint("motor_angle_rad"))
-        self._frames: RobotFrames | None = robot_frames(self.robot) if self.humanoid else None
+        truth = BaseTruth.of_run(run.out_dir) if self.humanoid else None
+        self._frames: RobotFrames | None = (
+            robot_frames(self.robot, truth) if self.humanoid else None
+        )
         self._bases: list[np.ndarray] = []  # the odometry is sequential: every row, once
         names = self.robot.joint_names if self.humanoid else ("gear",)
         self._hinges = [self.model.jnt_qposadr[self.model.joint(n).id] for n in names]
@@ -115,7 +118,7 @@ class RunScene:
         while len(self._bases) <= row:
             i = len(self._bases)
             sensors = {c: float(self.run.columns[c][i]) for c in sensor_columns(self.run)}
-            transforms = self._frames.at(self._link[:, i], sensors)
+            transforms = self._frames.at(self._link[:, i], sensors, float(self.run.time_s[i]))
             if transforms is None:
                 self._bases.append(self._bases[-1] if self._bases else _standing_base())
                 continue

@@ -44,6 +44,7 @@ from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, EmulatorStartError, emulator_spec
 from hil.wiring.in_process import in_process_bus
 from sim_backend.scenario import FaultEvent
+from sim_backend.truth_log import TRUTH_LOG_NAME
 
 
 class SessionError(RuntimeError):
@@ -123,21 +124,28 @@ class Session:
 
     @contextlib.contextmanager
     def bus(
-        self, experiment: Experiment, faults: tuple[FaultEvent, ...], clock: LoopClock
+        self,
+        experiment: Experiment | None,
+        faults: tuple[FaultEvent, ...],
+        clock: LoopClock,
+        out_dir: Path | None = None,
     ) -> Iterator[tuple[JointBus, dict[str, Any]]]:
         """The bus of this setup for one run, and what it connects to (an embedded emulator
-        lives as long as the run)."""
+        lives as long as the run and writes its ground truth into `out_dir`)."""
         if self.setup is Setup.IN_PROCESS:
             bus = in_process_bus(self.config, experiment, faults, seed=self.seed)
             yield bus, {"in_process": True}
             return
         bus_clock = clock.now if isinstance(clock, LockstepClock) else time.monotonic
-        with self.connection(experiment, faults) as connection:
+        with self.connection(experiment, faults, out_dir) as connection:
             yield make_bus(self.config, connection, clock=bus_clock), connection.record()
 
     @contextlib.contextmanager
     def connection(
-        self, experiment: Experiment | None, faults: tuple[FaultEvent, ...] = ()
+        self,
+        experiment: Experiment | None,
+        faults: tuple[FaultEvent, ...] = (),
+        out_dir: Path | None = None,
     ) -> Iterator[Connection]:
         """The buses of this setup (an embedded emulator lives as long as the context)."""
         overrides = self.overrides.given
@@ -148,6 +156,7 @@ class Session:
                 faults=faults,
                 clock=EmulatorClock.REALTIME if self.realtime else EmulatorClock.LOCKSTEP,
                 seed=self.seed,
+                truth_log=out_dir / TRUTH_LOG_NAME if out_dir is not None else None,
             )
             emulator = EmbeddedEmulator(spec)
             try:
@@ -230,7 +239,7 @@ class Session:
         )
         self.emulator_fault_counts = {}
         try:
-            with self.bus(experiment, faults, clock) as (bus, connection):
+            with self.bus(experiment, faults, clock, out_dir) as (bus, connection):
                 meta = self._meta(experiment, choice, faults, overruns, clock, connection)
                 meta["bus"] = bus.describe()
                 if self.ros2:

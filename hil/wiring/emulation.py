@@ -158,7 +158,10 @@ def emulator_spec(
     faults: tuple[FaultEvent, ...] = (),
     clock: EmulatorClock | None = None,
     seed: int | None = None,
+    truth_log: Path | None = None,
 ) -> EmulatorSpec:
+    """The emulator of `config`'s robot for one run of `experiment` (its world and start
+    posture); `truth_log`: where it writes its ground truth (sim_backend/truth_log.py)."""
     if len(config.dynamixel) != 1 or len(config.can) != 1:
         raise ConfigError(
             f"{config.source}: the emulator serves one Dynamixel chain and one CAN channel "
@@ -202,6 +205,7 @@ def emulator_spec(
             robot="testbed" if config.model.robot == "single_link" else config.model.robot,
             humanoid=_humanoid(config, start, experiment),
             usb_latency_timer_s=_usb_latency_ms(config) * 1e-3,
+            truth_log=str(truth_log) if truth_log is not None else "",
         )
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc

@@ -25,6 +25,15 @@ class EmulatedHumanoid(PlantClock):
     """See the module docstring; built from an `EmulatorSpec` whose robot is "dyros-jet"."""
 
     held_until_started = True  # in its gantry until the run starts (realtime clock)
+    # the pelvis (base_link) in the world: position [m] and orientation (x, y, z, w)
+    truth_columns = (
+        "base_x_m", "base_y_m", "base_z_m", "base_qx", "base_qy", "base_qz", "base_qw",
+    )  # fmt: skip
+
+    def truth_row(self) -> list[float]:
+        plant = self.robot.plant
+        w, x, y, z = plant.pelvis_quaternion_wxyz
+        return [*plant.pelvis_position_m.tolist(), x, y, z, w]
 
     def __init__(
         self,

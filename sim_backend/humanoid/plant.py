@@ -195,6 +195,12 @@ class HumanoidPlant:
         return self.data.xmat[self._pelvis_body].reshape(3, 3).copy()
 
     @property
+    def pelvis_quaternion_wxyz(self) -> tuple[float, float, float, float]:
+        """world <- pelvis as MuJoCo's unit quaternion (w, x, y, z)."""
+        w, x, y, z = (float(v) for v in self.data.xquat[self._pelvis_body])
+        return w, x, y, z
+
+    @property
     def pelvis_tilt_rad(self) -> float:
         """Angle between the pelvis z axis and the vertical (roll and pitch together)."""
         return float(np.arccos(np.clip(self.data.xmat[self._pelvis_body][8], -1.0, 1.0)))
