@@ -183,7 +183,11 @@ def render_run(
     title = str(run.meta.get("experiment_title") or run.meta.get("experiment") or "")
     note = "drawn from the log's link angles"
     if scene.humanoid:
-        note += "; the pelvis by leg odometry (not logged)"
+        note += (
+            "; the pelvis from the emulator's truth"
+            if scene.base_from_truth
+            else "; the pelvis by leg odometry (not logged)"
+        )
     written = [save_strip(images, instants, f"{title}\n{run.label}: {note}", strip)]
     if video is not None:
         frames = video_frames(scene, world, VIDEO_FPS, VIDEO_SIZE)

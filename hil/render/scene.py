@@ -6,10 +6,11 @@ posed tick by tick from the run's log.
     testbed    sim_backend/plant.py's MJCF: rotor hinge = the logged motor angle, gear hinge =
                the logged deflection (so the link is at the logged link angle)
     DYROS-JET  sim_backend/humanoid/mjcf.py's rigid robot: the 12 leg hinges at the logged link
-               angles; the floating base is not in log.csv, so it is the leg odometry of the
-               ROS 2 bag's /tf (hil/output/robot_frames.py, BASE_POSE_NOTE): the stance foot
-               held where it landed (measured against the emulator's pelvis: within 7 mm over
-               an 8 s slow walk, 6 cm sideways after the step onto the box)
+               angles; the floating base is not in log.csv: the emulator's truth beside the
+               run (emulator_truth.csv) where there is one, else the leg odometry of the ROS 2
+               bag's /tf (hil/output/robot_frames.py, BASE_POSE_NOTE): the stance foot held
+               where it landed (measured against the emulator's pelvis: within 7 mm over an 8 s
+               slow walk, 6 cm sideways after the step onto the box)
 
 Nothing here steps the physics: every frame is the kinematics of one logged tick.
 """
@@ -64,6 +65,7 @@ class RunScene:
         self._link = np.array(run.per_joint("link_angle_rad"))
         self._motor = np.array(run.per_joint("motor_angle_rad"))
         truth = BaseTruth.of_run(run.out_dir) if self.humanoid else None
+        self.base_from_truth = truth is not None
         self._frames: RobotFrames | None = (
             robot_frames(self.robot, truth) if self.humanoid else None
         )
