@@ -178,7 +178,7 @@ def run_comparison(
         walking=named == "walking",
     )
     print(report.table_text)
-    print(f"report: {report.markdown_path}")
+    print(report.where)
     if session.json_output:
         print(dumps(report.summary))
     if outcome.incomplete is not None:
@@ -316,7 +316,7 @@ def write_comparison_report(
                 runs.append(ComparisonRun(entry.choice, data))
         try:
             path = experiment.comparison_figure(runs, root / experiment.figure_name, setup)
-        except (KeyError, ValueError) as exc:
+        except (KeyError, ValueError, OSError) as exc:  # OSError: a full disk
             problems.append(f"{experiment.figure_name}: {exc}")
             continue
         if path is not None:
