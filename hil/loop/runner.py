@@ -381,6 +381,8 @@ class Loop:
         record_note = self.log.record_note()  # (the log is closed: the record is on disk)
         if record_note is not None:
             exit_notes.append(record_note)
+            if self.request.on_event is not None:
+                self.request.on_event(f"  {record_note}")
             if state.ending.ok and record_note.startswith(RECORD_INCOMPLETE):
                 state.ending = RunEnding(Termination.BUS_FAILURE, record_note)
         choice = self.request.choice

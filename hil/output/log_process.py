@@ -52,9 +52,9 @@ exit path and summary.json into the room kept for them (the rows it still held a
 Nothing in the pipe is lost when the loop's process ends unexpectedly: the writer reads what
 the pipe holds to the end, closes log.csv, timing.csv and events.jsonl, and finishes run.mcap
 (its index written); only rows still waiting in the loop's process (none unless the writer had
-fallen a pipe's worth behind) go with it. The writer ignores Ctrl-C and SIGTERM (the loop handles them and closes the log in
-order: nothing it does waits for the writer unbounded). Row ordering and content are the
-loop's; a lock-step log is the same bytes whoever writes it.
+fallen a pipe's worth behind) go with it. The writer ignores Ctrl-C and SIGTERM (the loop
+handles them and closes the log in order: nothing it does waits for the writer unbounded). Row
+ordering and content are the loop's; a lock-step log is the same bytes whoever writes it.
 
 The live view (`hil run --live`) serves the messages from the loop's process: a run with
 further message sinks keeps its RunLog there (`open_run_log`).
@@ -406,7 +406,7 @@ class LogProcess:
         self._sent += 1
         self._kept.append(record)
         self._kept_bytes += len(record)
-        if self._loss is not None:
+        if self._loss is not None or self._to_writer < 0:  # (kept for the loop to write)
             return
         if self._unsent:
             self._unsent.append(memoryview(record))

@@ -303,7 +303,7 @@ class RunLog:
         whole = self.write_error is None
         report: dict[str, Any] = {
             "state": str(RecordState.COMPLETE if whole else RecordState.INCOMPLETE),
-            "rows": self.rows,
+            "rows": self.rows + self.rows_not_written,  # the run's, as the loop handed them
         }
         if not whole:
             report.update(

@@ -25,6 +25,7 @@ from hil.loop import LockstepClock, RunRequest, StopFlag, WallClock, run_experim
 from hil.output.log_process import LogProcess
 from hil.vocabulary import ControllerChoice, Termination
 from hil.wiring.in_process import in_process_bus
+from hil.wiring.process_activity import ProcessActivity
 from tests.support.rig import assert_log_complete, load_run, run_in_process
 
 pytestmark = [
@@ -74,11 +75,7 @@ class _Writers:
 
 
 def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state not in ("Z", "X")
+    return ProcessActivity(pid).look() is not None  # None: gone (or a zombie)
 
 
 @pytest.fixture
