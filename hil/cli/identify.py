@@ -202,6 +202,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
     except NotAnIdentificationRun as exc:
         print(f"hil identify: {exc}", file=sys.stderr)
         return ExitCode.USAGE
+    for note in (note for run in runs for note in run.run.notes):  # e.g. a torn last row
+        print(f"hil identify: note: {note}", file=sys.stderr)
     joints = [tuple(run.logs) for run in runs]
     if len(set(joints)) != 1:
         print(

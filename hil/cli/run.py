@@ -20,7 +20,7 @@ from hil.controllers.choice import choose
 from hil.experiments import Experiment, get_experiment
 from hil.loop import StopFlag, duration_problem
 from hil.output.channels import MessageSink
-from hil.output.rundir import estimated_record_bytes
+from hil.output.rundir import describe_bytes, estimated_record_bytes
 from hil.safety import ReferenceOutsideLimits
 from hil.session import Session, SessionError, Setup, run_comparison
 from hil.session.comparison import NAMED_COMPARISONS
@@ -236,8 +236,8 @@ def _check_out(args: argparse.Namespace, config: Config) -> None:
     free = shutil.disk_usage(out).free
     if need > free:
         raise ConfigError(
-            f"--out {out}: the run's record takes about {need / 1e9:.1f} GB, more than the "
-            f"{free / 1e9:.1f} GB free there (--no-mcap writes about a fifth as much on the "
+            f"--out {out}: the run's record takes about {describe_bytes(need)}, more than the "
+            f"{describe_bytes(free)} free there (--no-mcap writes about a fifth as much on the "
             "testbed; or shorten --duration)"
         )
 

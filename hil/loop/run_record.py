@@ -5,7 +5,10 @@ later). The log writer's process gets them at the end of the tick (~20 us for th
 ~220 numbers). A log in this process (the live view) writes them during the next tick, between
 sending the bus requests and collecting the answers: formatting them costs ~0.3-0.4 ms on the
 humanoid, time the answers spend travelling anyway; the last tick's rows are written on every
-exit path (`write_kept`), and a process killed outright loses them.
+exit path (`write_kept`), and a process killed outright loses them. Neither way waits: a log
+writer that is lost raises from the hand-over (the spine counts the tick done first: its rows
+are kept and written by the loop at the end), and a disk that refuses a row raises from the
+write during the wait (hil/output/record_files.py).
 """
 
 from __future__ import annotations

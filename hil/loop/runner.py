@@ -24,13 +24,17 @@ through the same `finally`: the configured exit torque state is applied (best ef
 joint, whatever the bus raises), the bus is closed, summary.json is written, and the log files
 are closed. The log is written by a process of its own (hil/output/log_process.py), which has
 every tick's rows at the end of that tick and writes what it has when this process ends, however
-it ends; a writer that ends before the run stops the run like a lost bus. With the live view the
-log stays in this process, line-buffered, a tick's rows written during the next tick
-(hil/loop/run_record.py).
+it ends; a writer that ends or stalls before the run stops the run like a lost bus, and the
+loop writes the record's rest itself (after the exit path: `_finish`, the exit notes and
+summary.json's `record` say so); one lost only at the end leaves a completed run. A record that
+could not be written whole (a full disk) makes a run that ran its course a bus failure. With the
+live view the log stays in this process, a line at a time, a tick's rows written during the next
+tick (hil/loop/run_record.py).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import gc
 import time
@@ -57,10 +61,13 @@ from hil.loop.run_record import RunRecord
 from hil.loop.spine import LOST_BUS_ERRORS, Spine
 from hil.loop.timeline import Phase
 from hil.output.log_process import LogWriterLost, open_run_log
+from hil.output.record_files import RecordWriteError
 from hil.output.records import RunResult
 from hil.output.rundir import load_run
+from hil.output.runlog import RECORD_INCOMPLETE
 from hil.safety import Supervisor, protections_of
 from hil.vocabulary import RunEnding, SafetyCause, Termination
+from hil.wiring.process_activity import ProcessActivity, proc_available
 
 __all__ = ["LOST_BUS_ERRORS", "Loop", "run_experiment", "sensor_columns", "supervisor_for"]
 
@@ -123,6 +130,7 @@ class Loop:
             mcap=request.mcap,
             sinks=request.sinks,
             term_columns=terms,
+            activity=writer_activity,
         )
         self.spine = Spine(
             config,
@@ -364,15 +372,22 @@ class Loop:
     # --- every exit path -----------------------------------------------------------------------
     def _finish(self, wall_time_s: float) -> None:
         spine, state = self.spine, self.spine.state
-        try:
+        # A writer lost at the end: the run's last rows are kept, and written by the loop with
+        # the rest (hil/output/log_process.py); only a record that cannot be written whole
+        # makes a run that ran its course a failure (below).
+        with contextlib.suppress(LogWriterLost):
             spine.record.write_kept()
-        except LogWriterLost as exc:  # the rows of the end are lost with the writer: say so
-            if state.ending.ok:
-                state.ending = RunEnding(Termination.BUS_FAILURE, str(exc))
         if self.scheduler is not None:
             self.scheduler.close()
         exit_notes = spine.close()
         metrics = self._metrics()
+        record_note = self.log.record_note()  # (the log is closed: the record is on disk)
+        if record_note is not None:
+            exit_notes.append(record_note)
+            if self.request.on_event is not None:
+                self.request.on_event(f"  {record_note}")
+            if state.ending.ok and record_note.startswith(RECORD_INCOMPLETE):
+                state.ending = RunEnding(Termination.BUS_FAILURE, record_note)
         choice = self.request.choice
         feed = self.feed
         summary = {
@@ -392,7 +407,10 @@ class Loop:
             "reference_feedback": feed.feedback.describe() if feed.feedback else None,
             "metrics": metrics,
         }
-        self.log.write_summary(summary)
+        try:
+            self.log.write_summary(summary)
+        except RecordWriteError as exc:  # the result and the --json line still say it all
+            exit_notes.append(f"summary.json not written: {exc}")
         self.log.close()
         self.result = RunResult(
             self.request.out_dir,
@@ -416,6 +434,11 @@ class Loop:
             return self.experiment.metrics(dataclasses.replace(run, summary=summary))
         except (ValueError, KeyError) as exc:
             return {"error": str(exc)}
+
+
+def writer_activity(pid: int) -> ProcessActivity | None:
+    """How the log writer's process is looked at (hil/output/writer_watch.py)."""
+    return ProcessActivity(pid) if proc_available() else None
 
 
 def sensor_columns(config: Config) -> tuple[str, ...]:

@@ -200,10 +200,12 @@ class Spine:
         self.record.keep(
             tick, sample, reference, state.goal, phase, self.supervisor.state, terms, timing
         )
-        self.record.hand_over()
+        # the tick is done once its rows are the record's: a writer found lost at the hand-over
+        # keeps them too (the loop writes them), and summary.json's ticks counts them
         state.ticks_done = k + 1
         if k == 0:  # the start-up tick is not paced (hil/loop/clock.py)
             self.clock.start_grid()
+        self.record.hand_over()
 
     # --- tick 0 --------------------------------------------------------------------------------
     def _start(self, sample: JointSample) -> JointSample:

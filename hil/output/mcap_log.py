@@ -2,7 +2,10 @@
 
 Written with the `mcap` library's writer, uncompressed, in chunks of CHUNK_SIZE_BYTES (each
 chunk is written to disk when full, so a crash loses at most one chunk; the CSV files are
-line-buffered and stay the complete record). The run's metadata and summary are also MCAP
+written a line at a time and stay the complete record). A write the disk refuses (it is full)
+is cut off again and raises `RecordWriteError`: the file is left as the records before it (an
+MCAP file without its index, which `mcap recover` completes and streaming readers read), and
+the sink takes nothing more. The run's metadata and summary are also MCAP
 Metadata records ("run_meta", "run_summary": top-level keys, values as JSON text), which
 `mcap info` and Foxglove's metadata panel show.
 
@@ -12,12 +15,14 @@ and `Writer.add_message` for each; `hil bench log` measures it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, BinaryIO
 
 from mcap.writer import CompressionType, Writer
 
 from hil.output.channels import Channel
+from hil.output.record_files import RecordFile, RecordWriteError
 from hil.output.strict_json import dumps
 
 MCAP_NAME = "run.mcap"
@@ -33,37 +38,70 @@ class McapSink:
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._file = RecordFile(self.path)  # closed in close()
+        self.failed: RecordWriteError | None = None  # a write the disk refused: nothing more
         self._writer = Writer(
-            self._file, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE
+            self._file,  # type: ignore[arg-type]  # write, tell and flush are what it uses
+            chunk_size=CHUNK_SIZE_BYTES,
+            compression=CompressionType.NONE,
         )
-        self._writer.start(profile=PROFILE, library="flexjoint-hil")
+        self._whole(lambda: self._writer.start(profile=PROFILE, library="flexjoint-hil"))
         self._ids: dict[int, int] = {}
         self._sequence: dict[int, int] = {}
         self.closed = False
 
+    def _whole(self, call: Callable[[], object]) -> None:
+        """One call of the writer, all of its writes or none (see the module docstring)."""
+        if self.failed is not None:
+            return
+        before = self._file.size
+        try:
+            call()
+        except RecordWriteError as exc:
+            self._file.cut_to(before)
+            self.failed = exc
+            raise
+
     def add_channel(self, channel: Channel) -> None:
-        schema_id = self._writer.register_schema(
-            channel.schema_name, channel.schema_encoding, channel.schema_bytes
-        )
-        self._ids[channel.id] = self._writer.register_channel(
-            channel.topic, channel.message_encoding, schema_id, channel.metadata
-        )
-        self._sequence[channel.id] = 0
+        def register() -> None:
+            schema_id = self._writer.register_schema(
+                channel.schema_name, channel.schema_encoding, channel.schema_bytes
+            )
+            self._ids[channel.id] = self._writer.register_channel(
+                channel.topic, channel.message_encoding, schema_id, channel.metadata
+            )
+            self._sequence[channel.id] = 0
+
+        self._whole(register)
 
     def message(self, channel_id: int, log_time_ns: int, data: bytes) -> None:
+        if self.failed is not None:
+            return
         sequence = self._sequence[channel_id]
         self._sequence[channel_id] = sequence + 1
-        self._writer.add_message(self._ids[channel_id], log_time_ns, data, log_time_ns, sequence)
+        before = self._file.size
+        try:
+            self._writer.add_message(
+                self._ids[channel_id], log_time_ns, data, log_time_ns, sequence
+            )
+        except RecordWriteError as exc:
+            self._file.cut_to(before)
+            self.failed = exc
+            raise
 
     def metadata(self, name: str, document: dict[str, Any]) -> None:
-        self._writer.add_metadata(name, {str(k): dumps(v) for k, v in document.items()})
+        text = {str(k): dumps(v) for k, v in document.items()}
+        self._whole(lambda: self._writer.add_metadata(name, text))
 
     def close(self) -> None:
+        """The file finished (its index written); one that failed is left as it is."""
         if self.closed:
             return
         self.closed = True
-        finish(self._writer, self._file)
+        try:
+            self._whole(self._writer.finish)
+        finally:
+            self._file.close()
 
 
 def finish(writer: Writer, file: BinaryIO) -> None:

@@ -106,10 +106,16 @@ def overload_time_s(run: RunData, joint: str = "") -> float | None:
 
 
 def save_figure(figure: Figure, path: Path) -> Path:
+    """The figure as a PNG; a disk that did not take it whole leaves no half file (the OSError
+    goes on: the caller says the figure is missing)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(figure)
-    figure.savefig(path, dpi=DPI)
+    try:
+        figure.savefig(path, dpi=DPI)
+    except OSError:
+        Path(path).unlink(missing_ok=True)
+        raise
     return path
 
 

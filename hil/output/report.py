@@ -22,7 +22,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from hil.output.record_files import RecordWriteError
 from hil.output.records import UNMEASURED, RunEntry
+from hil.output.runlog import write_file_whole
 from hil.output.strict_json import dumps
 from hil.vocabulary import ControllerKind
 
@@ -52,6 +54,14 @@ class Report:
     summary: dict[str, Any]
     relations: tuple[Relation, ...]
     figure_paths: tuple[Path, ...]
+    not_written: str | None = None  # why report.md / report.json are not on disk (a full disk)
+
+    @property
+    def where(self) -> str:
+        """Where the report is, or why it is not there, in one line."""
+        if self.not_written is not None:
+            return f"report not written: {self.not_written} (the table above is all of it)"
+        return f"report: {self.markdown_path}"
 
 
 # --- looking runs up and checking a claim --------------------------------------------------
@@ -222,9 +232,10 @@ def _provenance(entries: Sequence[RunEntry]) -> dict[str, Any]:
     config: dict[str, Any] = {}
     for entry in entries:
         meta_path = Path(entry.result.out_dir) / "meta.json"
-        if not meta_path.is_file():
+        try:
+            meta = json.loads(meta_path.read_text())
+        except (OSError, ValueError):  # none, or not whole (a run that never began)
             continue
-        meta = json.loads(meta_path.read_text())
         if meta.get("seed") not in seeds:
             seeds.append(meta.get("seed"))
         packages = packages or dict(meta.get("packages", {}))
@@ -282,10 +293,8 @@ def write_report(
     }
     table_text = _terminal_text(content, provenance, tables, relations, counts)
     markdown_path = root / "report.md"
-    markdown_path.write_text(
-        _markdown(
-            root, entries, content, provenance, tables, relations, counts, figures, figure_problems
-        )
+    markdown = _markdown(
+        root, entries, content, provenance, tables, relations, counts, figures, figure_problems
     )
     summary = {
         "setup": content.setup,
@@ -310,8 +319,15 @@ def write_report(
         "relations": [{**asdict(r), "verdict": r.verdict} for r in relations],
         "relation_counts": counts,
     }
-    (root / "report.json").write_text(dumps(summary, indent=2) + "\n")
-    return Report(table_text, markdown_path, summary, tuple(relations), tuple(figures))
+    not_written = None
+    for path, text in ((markdown_path, markdown), (root / "report.json", dumps(summary, indent=2))):
+        try:
+            write_file_whole(path, text if text.endswith("\n") else text + "\n")
+        except RecordWriteError as exc:  # a full disk: the report is still printed
+            not_written = not_written or str(exc)
+    if not_written is not None:
+        summary["report"] = None
+    return Report(table_text, markdown_path, summary, tuple(relations), tuple(figures), not_written)
 
 
 def _on_off(flag: bool | None) -> str:
@@ -396,11 +412,23 @@ def _markdown(
         out += [markdown_table(header, rows), ""]
     out += ["## Run directories", ""]
     for entry in entries:
-        where = _where(root, entry.result.out_dir)
-        plots = sorted(p.name for p in Path(entry.result.out_dir).glob("plot*.png"))
-        shown = ", ".join(f"[{name}]({where}/{name})" for name in plots)
-        out.append(
-            f"- {entry.experiment} / {entry.choice.label}: `{where}/` "
-            f"(log.csv, events.jsonl, summary.json{', ' + shown if shown else ''})"
-        )
+        out.append(f"- {entry.experiment} / {entry.choice.label}: {_run_files(root, entry)}")
     return "\n".join(out) + "\n"
+
+
+def _run_files(root: Path, entry: RunEntry) -> str:
+    """A run's directory and the files it holds (a run whose worker was killed may have no
+    summary.json: it is said missing, not listed)."""
+    out_dir = Path(entry.result.out_dir)
+    where = _where(root, out_dir)
+    files = [name for name in _RUN_FILES if (out_dir / name).is_file()]
+    files += [
+        f"[{p.name}]({where}/{p.name})" for p in sorted(out_dir.glob("plot*.png")) if p.is_file()
+    ]
+    missing = [name for name in _RUN_FILES if not (out_dir / name).is_file()]
+    listed = f"({', '.join(files)})" if files else "(no files)"
+    said = f"; no {', '.join(missing)}" if missing else ""
+    return f"`{where}/` {listed}{said}"
+
+
+_RUN_FILES = ("log.csv", "events.jsonl", "summary.json")

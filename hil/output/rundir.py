@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from hil.output.runlog import read_log
-from hil.output.strict_json import dumps
+from hil.output.record_files import RESERVE_BYTES
+from hil.output.runlog import read_log_checked, write_summary_file
 
 _JOINT_COLUMN = re.compile(r"^link_angle_rad\[(.+)\]$")
 
@@ -58,9 +58,19 @@ _RECORD_BYTES_PER_TICK = {False: (67.0, 125.0), True: (810.0, 429.0)}  # (base, 
 
 
 def estimated_record_bytes(ticks: int, n_joints: int, mcap: bool) -> float:
-    """About how many bytes a run of `ticks` ticks writes (see _RECORD_BYTES_PER_TICK)."""
+    """About how many bytes a run of `ticks` ticks writes (see _RECORD_BYTES_PER_TICK), and the
+    room kept for the record's end (hil/output/record_files.py)."""
     base, per_joint = _RECORD_BYTES_PER_TICK[mcap]
-    return ticks * (base + per_joint * n_joints)
+    return ticks * (base + per_joint * n_joints) + RESERVE_BYTES
+
+
+def describe_bytes(count: float) -> str:
+    """A size in the unit that fits it: 950 B, 12 kB, 3.4 MB, 19.2 GB (SI: 1 kB = 1000 B)."""
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if count >= size:
+            value = count / size
+            return f"{value:.0f} {unit}" if value >= 100 else f"{value:.1f} {unit}"
+    return f"{count:.0f} B"
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,8 @@ class RunData:
     summary: dict[str, Any]
     events: tuple[dict[str, Any], ...]
     joint_names: tuple[str, ...]  # ("",) for a single-joint log (no column suffixes)
+    # what was read around: a torn last row of log.csv, a torn last line of events.jsonl
+    notes: tuple[str, ...] = ()
 
     @property
     def time_s(self) -> np.ndarray:
@@ -105,19 +117,23 @@ class RunData:
 
 
 def load_run(out_dir: Path) -> RunData:
-    """Read a run directory written by hil.output.runlog.RunLog; only log.csv is required."""
+    """Read a run directory written by hil.output.runlog.RunLog; only log.csv is required.
+    A record cut off in the middle of its last line (a run killed, or written before the
+    record kept its lines whole) is read without that line, and `notes` says so."""
     out_dir = Path(out_dir)
     log_path = out_dir / "log.csv"
     if not log_path.is_file():
         raise FileNotFoundError(f"{out_dir} holds no log.csv: is it a run directory?")
-    columns = read_log(log_path)
+    columns, torn = read_log_checked(log_path)
     if "time_s" not in columns:
         raise ValueError(f"{log_path} has no time_s column: not a hil run log")
+    notes = [torn] if torn else []
     suffixed = tuple(m.group(1) for c in columns if (m := _JOINT_COLUMN.match(c)))
     events: list[dict[str, Any]] = []
     events_path = out_dir / "events.jsonl"
     if events_path.is_file():
-        events = [json.loads(line) for line in events_path.read_text().splitlines() if line]
+        events, torn_event = _read_events(events_path)
+        notes += [torn_event] if torn_event else []
     return RunData(
         out_dir=out_dir,
         columns=columns,
@@ -125,7 +141,22 @@ def load_run(out_dir: Path) -> RunData:
         summary=_read_json(out_dir / "summary.json", torn_ok=True),  # written last: may be torn
         events=tuple(events),
         joint_names=suffixed or ("",),
+        notes=tuple(notes),
     )
+
+
+def _read_events(path: Path) -> tuple[list[dict[str, Any]], str | None]:
+    """events.jsonl's lines; a last line cut off is left out (and said)."""
+    text = path.read_text()
+    lines = text.splitlines()
+    note = None
+    if lines and not text.endswith("\n"):
+        try:
+            json.loads(lines[-1])
+        except ValueError:
+            lines.pop()
+            note = f"{path}: its last line is torn (the file ends in the middle of it): left out"
+    return [json.loads(line) for line in lines if line], note
 
 
 def _read_json(path: Path, *, torn_ok: bool = False) -> dict[str, Any]:
@@ -143,9 +174,6 @@ def _read_json(path: Path, *, torn_ok: bool = False) -> dict[str, Any]:
 def add_to_summary(out_dir: Path, key: str, value: Any) -> None:
     """One more entry in a finished run's summary.json (what was learnt after the run ended,
     e.g. from the emulator), written atomically."""
-    path = Path(out_dir) / "summary.json"
-    summary = _read_json(path)
+    summary = _read_json(Path(out_dir) / "summary.json")
     summary[key] = value
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(dumps(summary, indent=2) + "\n")
-    tmp.replace(path)
+    write_summary_file(out_dir, summary)

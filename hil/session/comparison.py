@@ -180,7 +180,7 @@ def run_comparison(
         rendered=named == "walking" and session.plots,
     )
     print(report.table_text)
-    print(f"report: {report.markdown_path}")
+    print(report.where)
     drawn = [p for p in report.figure_paths if p.name == FIG8_RENDERED]
     if drawn:
         print(f"Fig. 8 drawn from the emulated robot: {drawn[0]}")
@@ -323,7 +323,7 @@ def write_comparison_report(
                 runs.append(ComparisonRun(entry.choice, data))
         try:
             path = experiment.comparison_figure(runs, root / experiment.figure_name, setup)
-        except (KeyError, ValueError) as exc:
+        except (KeyError, ValueError, OSError) as exc:  # OSError: a full disk
             problems.append(f"{experiment.figure_name}: {exc}")
             continue
         if path is not None:

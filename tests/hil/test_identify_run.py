@@ -7,6 +7,7 @@ tests/e2e/test_identify_cli.py."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -109,6 +110,24 @@ def test_hil_identify_recovers_the_emulators_constants_from_a_short_run(
     assert figure.read_bytes()[:4] == b"\x89PNG"
     assert "[model]" in out and "[emulator]" in out
     assert (short_run / "identification.toml").is_file()
+
+
+def test_hil_identify_reads_a_log_torn_in_its_last_row(
+    short_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 25: a log.csv that ends mid-row (a disk that filled up, a writer killed before the
+    record kept its lines whole) made `hil identify` die of an IndexError. It is read without
+    the torn row, and says so."""
+    torn = tmp_path / "torn"
+    shutil.copytree(short_run, torn)
+    log = torn / "log.csv"
+    text = log.read_text()
+    log.write_text(text[: len(text) - len(text.splitlines()[-1]) // 2 - 1])  # half a row
+    assert main(["identify", str(torn), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "last row is torn" in captured.err and str(log) in captured.err
+    result = json.loads(captured.out.strip().splitlines()[-1])
+    assert result["gear_stiffness_nm_per_rad"]["value"] > 0
 
 
 def test_hil_identify_refuses_what_is_not_an_identification_run(

@@ -378,3 +378,26 @@ def test_a_dob_run_that_trips_is_not_compliant_even_at_a_small_force(tmp_path: P
     compliant = _one(relations, "Kdist 1", "stays compliant")
     assert compliant.holds is False and "TRIPPED" in compliant.ours
     assert _one(relations, "Kdist 1", "less than pid").holds is True
+
+
+def test_the_report_lists_only_the_files_a_run_has(
+    paper_like: tuple[Path, list], tmp_path: Path
+) -> None:
+    """Issue 25: report.md listed a summary.json that a killed worker's run does not have."""
+    _, results = paper_like
+    entries = []
+    for name, files in (("whole-run", 3), ("killed-run", 2)):
+        out_dir = tmp_path / name
+        out_dir.mkdir()
+        for file in ("log.csv", "events.jsonl"):
+            (out_dir / file).write_bytes((results[0].result.out_dir / file).read_bytes())
+        if files == 3:
+            (out_dir / "summary.json").write_text("{}")
+        ending = RunEnding(Termination.ERROR, "the worker process died")
+        entries.append(RunEntry("impact", results[0].choice, RunResult(out_dir, ending, {})))
+    report = write_comparison_report(tmp_path, entries, "synthetic setup", 1.0)
+    lines = report.markdown_path.read_text().splitlines()
+    (killed,) = [line for line in lines if "`killed-run/`" in line]
+    assert "(log.csv, events.jsonl)" in killed and "no summary.json" in killed, killed
+    (whole,) = [line for line in lines if "`whole-run/`" in line]
+    assert whole.endswith("(log.csv, events.jsonl, summary.json)"), whole
