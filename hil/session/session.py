@@ -150,6 +150,8 @@ class Session:
         """The buses of this setup (an embedded emulator lives as long as the context)."""
         overrides = self.overrides.given
         if self.setup is Setup.EMBEDDED:
+            if out_dir is not None:  # a planned run's directory is named, not yet made
+                out_dir.mkdir(parents=True, exist_ok=True)
             spec = emulator_spec(
                 self.config,
                 experiment=experiment,

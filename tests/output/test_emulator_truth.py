@@ -51,3 +51,28 @@ def test_an_emulated_stand_leaves_its_truth_and_the_bag_publishes_it(tmp_path: P
         channels = make_reader(f).get_summary().channels.values()
     (tf_channel,) = [c for c in channels if c.topic == "/tf"]
     assert "emulator's ground truth" in json.dumps(tf_channel.metadata)
+
+
+def test_a_planned_run_whose_directory_is_not_made_yet_starts_its_emulator(
+    tmp_path: Path,
+) -> None:
+    """A comparison names its runs' directories and makes them as each run begins: the
+    emulator, which opens its truth there first, must find it (before, every humanoid
+    comparison run failed at start-up with FileNotFoundError)."""
+    from hil.config import load_config
+    from hil.experiments import get_experiment
+    from hil.session import Session, Setup
+    from hil.vocabulary import ControllerChoice, ControllerKind
+
+    config = load_config(robot="dyros-jet")
+    session = Session(config, Setup.EMBEDDED, out_root=tmp_path, plots=False, quiet=True)
+    out_dir = tmp_path / "comparison" / "stand-gc"
+    result = session.run_one(
+        get_experiment("stand"),
+        ControllerChoice(ControllerKind.GC),
+        duration_s=0.2,
+        out_dir=out_dir,
+        print_result=False,
+    )
+    assert result.termination.ran_its_course, result.ending
+    assert (out_dir / "emulator_truth.csv").stat().st_size > 0
