@@ -453,13 +453,17 @@ class LogProcess:
 
     def _check_progress(self, owed_answer: int = 0) -> None:
         """Forget what the writer has handled; find it stalled or too far behind."""
+        if self._unsent:  # (what the pipe did not take, before the writer is judged)
+            self._drain()
+            if self._loss is not None:
+                return
         done = self._progress.records_done()
         kept = self._kept
         while kept and self._first_kept <= done:
             self._kept_bytes -= len(kept.popleft())
             self._first_kept += 1
         behind = self._sent - done
-        if self._watch.check(done, behind + owed_answer):
+        if self._watch.check(done, behind + owed_answer, self._progress.looks()):
             self._lose(WRITER_STALLED, self._watch.describe(behind))
         elif self._kept_bytes > BACKLOG_BYTES:
             self._lose(
@@ -638,8 +642,10 @@ class _Writer:
             try:
                 chunk = os.read(rows, _PIPE_BYTES)
             except BlockingIOError:
+                self.progress.looked()
                 time.sleep(POLL_S)
                 continue
+            self.progress.looked()
             if not chunk:  # the loop's process has ended: what was received is written
                 self.log.close()
                 self.log.finish_sinks()

@@ -7,7 +7,8 @@ bytes of log.csv, events.jsonl and timing.csv are whole on disk then: what the l
 take the record over exactly where the writer stopped. Two copies of those figures alternate, so
 the one the count names is always whole, even in a writer killed while it wrote the other.
 
-A writer has stalled when, while it had records to handle, it made no progress for
+A writer has stalled when, while it had records to handle, it made no progress (handled no
+record and did not look at the pipe, which a working writer does every POLL_S) for
 WRITER_STALL_S of the loop's wall time and then, looked at (a `PeerActivity`: the loop passes
 hil/wiring/process_activity.py's look at /proc; the policy is drivers/peer_wait.py's), neither
 ran nor waited for a CPU for WRITER_IDLE_WINDOW_S more: stopped (SIGSTOP, Ctrl-Z), or stuck in
@@ -35,7 +36,8 @@ WRITER_IDLE_WINDOW_S = 0.1  # ...and then neither running nor runnable for this 
 _LOOK_INTERVAL_S = 0.01  # a writer that works is looked at again this often
 
 _FIGURES = 4  # records handled, log.csv, events.jsonl, timing.csv bytes
-_COUNT, _STATUS, _FIRST = 0, 1, 2  # the page: publications, status, two copies of the figures
+# the page: publications, status, the writer's looks at the pipe, two copies of the figures
+_COUNT, _STATUS, _LOOKS, _FIRST = 0, 1, 2, 3
 
 
 class WriterStatus(enum.IntEnum):
@@ -61,6 +63,14 @@ class WriterProgress:
         values[base] = records
         values[base + 1], values[base + 2], values[base + 3] = sizes
         values[_COUNT] = count  # the copy just written is the one this count names
+
+    def looked(self) -> None:
+        """The writer: it has looked at the pipe (it is alive, whether or not a whole record
+        was there for it)."""
+        self._values[_LOOKS] += 1
+
+    def looks(self) -> int:
+        return self._values[_LOOKS]
 
     def records_done(self) -> int:
         values = self._values
@@ -107,18 +117,22 @@ class StallWatch:
             if activity is not None
             else None
         )
-        self._seen = -1  # the records handled at the last check
+        self._seen = (-1, -1)  # the records handled and the writer's looks at the last check
         self._since = 0.0  # when it last made progress (or the watch started again)
         self._last_check = -1e9
         self._next_look = 0.0
 
-    def check(self, done: int, owed: int) -> bool:
-        """True when the writer has stalled: `done` records handled, `owed` more it has."""
+    def check(self, done: int, owed: int, looks: int = 0) -> bool:
+        """True when the writer has stalled: `done` records handled, `owed` more it has,
+        `looks` at the pipe so far. A writer that goes on looking at the pipe has not stalled
+        whatever it owes: what it lacks has not reached the pipe (on a loaded machine a
+        writer asleep between its looks is what a look at /proc sees nearly every time)."""
         now = self._clock()
         away = now - self._last_check > WRITER_STALL_S / 2
         self._last_check = now
-        if done != self._seen or owed <= 0 or away:
-            self._seen, self._since, self._next_look = done, now, 0.0
+        seen = (done, looks)
+        if seen != self._seen or owed <= 0 or away:
+            self._seen, self._since, self._next_look = seen, now, 0.0
             if self._peer is not None:
                 self._peer.begin()
             return False
