@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import enum
+import os
 import platform
 import sys
 import time
@@ -256,6 +257,8 @@ class Session:
             warn_torque_not_off(result)
         if faults:
             self._record_fault_counts(out_dir, faults)
+        if self.ros2 and (out_dir / TRUTH_LOG_NAME).is_file():
+            self._bag_with_the_truth(out_dir)
         if result.ticks > 1:
             self._write_derived_series(experiment, out_dir)
         if self.plots and result.ticks > 1:
@@ -267,6 +270,25 @@ class Session:
         if print_result:
             self._print_result(experiment, choice, result)
         return result
+
+    def _bag_with_the_truth(self, out_dir: Path) -> None:
+        """The finished run's ROS 2 bag made again from its record, with the humanoid's base
+        from the emulator's truth (the bag written during the run has the leg odometry: the
+        truth is the emulator's own file, complete only once it has stopped). Written beside
+        and then put in place: a failure leaves the run's own bag as it was, and says so."""
+        from hil.output.ros2_export import export_ros2
+
+        bag = out_dir / ROS2_BAG_NAME
+        whole = bag.with_name(f".{bag.name}.with-truth")
+        try:
+            export_ros2(out_dir, whole)
+            os.replace(whole, bag)
+        except Exception as exc:  # noqa: BLE001 - the bag written during the run stays
+            whole.unlink(missing_ok=True)
+            self.say(
+                "  (the ROS 2 bag keeps the leg odometry for the base: "
+                f"{type(exc).__name__}: {exc})"
+            )
 
     def _write_derived_series(self, experiment: Experiment, out_dir: Path) -> None:
         """The experiment's per-tick series beside log.csv (kinematics.csv on the humanoid:

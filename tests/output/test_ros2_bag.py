@@ -238,17 +238,36 @@ def _raw(bag: Path) -> dict[str, list[tuple[int, int, bytes]]]:
     return found
 
 
-def test_hil_run_ros2_writes_the_bag_the_export_makes(walk_run: Path) -> None:
-    """Byte for byte, but for /tf: during the run the humanoid's base is the leg odometry (the
-    emulator's truth is its own, written beside the run), the export of the finished run
-    publishes the truth (tests/output/test_emulator_truth.py)."""
+def test_hil_run_ros2_leaves_the_bag_the_export_makes(walk_run: Path) -> None:
+    """Byte for byte, /tf too: the bag written during the run has the leg odometry for the
+    humanoid's base; once the emulator has stopped, the run's bag is made again with its truth
+    (tests/output/test_emulator_truth.py checks that base against the truth)."""
     written = walk_run / ROS2_BAG_NAME
     _check_bag(walk_run, written)
-    during, after = _raw(written), _raw(_export(walk_run))
-    assert set(during) == set(after) and len(during["/tf"]) == len(after["/tf"])
-    assert {t: m for t, m in during.items() if t != "/tf"} == {
-        t: m for t, m in after.items() if t != "/tf"
-    }
+    assert _raw(written) == _raw(_export(walk_run))
+    assert not list(walk_run.glob(".*with-truth"))
+
+
+def test_the_bag_written_during_a_run_is_the_one_the_export_makes(tmp_path: Path) -> None:
+    """The log writer's own bag (kept when there is no emulator truth: in process, on
+    hardware, or if the run ends before it is made again), byte for byte the export's."""
+    from hil.config import load_config
+    from hil.experiments import get_experiment
+    from hil.session import Session, Setup
+    from hil.vocabulary import ControllerChoice
+
+    config = load_config(robot="dyros-jet")
+    session = Session(config, Setup.IN_PROCESS, out_root=tmp_path, plots=False, quiet=True)
+    session.ros2 = True
+    result = session.run_one(
+        get_experiment("walk-slow"), ControllerChoice("gc"), duration_s=2.0, print_result=False
+    )
+    assert result.termination.ran_its_course, result.ending
+    written = result.out_dir / ROS2_BAG_NAME
+    assert not (result.out_dir / "emulator_truth.csv").exists()
+    _check_bag(result.out_dir, written)
+    during, after = _raw(written), _raw(_export(result.out_dir))
+    assert set(during) >= set(PER_TICK) and during == after
 
 
 _KILLED_LOOP = textwrap.dedent(
