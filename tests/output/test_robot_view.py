@@ -115,8 +115,16 @@ def _check_view(run_dir: Path) -> dict[str, list]:
 
 def test_a_walks_run_mcap_carries_the_robots_frames_and_description(walk_run: Path) -> None:
     decoded = _check_view(walk_run)
+    # the joints' frames as the bag has them; the base is the leg odometry here (run.mcap is
+    # written during the run), the emulator's truth in the finished run's bag
     bag_tf = _bag_tf(walk_run / "run.ros2.mcap", "/tf")
-    assert [_tuples(m.transforms) for m in decoded["/tf"]] == bag_tf
+    view_tf = [_tuples(m.transforms) for m in decoded["/tf"]]
+    assert [tf[1:] for tf in view_tf] == [tf[1:] for tf in bag_tf]
+    assert (
+        [tf[0][1] for tf in view_tf] == [tf[0][1] for tf in bag_tf] == ["base_link"] * len(bag_tf)
+    )
+    odometry_error = [abs(v[0][2] - b[0][2]) for v, b in zip(view_tf, bag_tf, strict=True)]
+    assert max(odometry_error) < 0.01  # (tests/output/test_base_odometry.py: within 1 cm)
     (bag_static,) = _bag_tf(walk_run / "run.ros2.mcap", "/tf_static")
     assert _tuples(decoded["/tf_static"][0].transforms) == bag_static
     base = decoded["/tf"][0].transforms[0]
