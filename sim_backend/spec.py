@@ -3,6 +3,7 @@ experiment's world) and the emulator process reads (as JSON: sim_backend/spec_js
 
 from __future__ import annotations
 
+import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -18,7 +19,17 @@ from sim_backend.scenario import Scenario
 from sim_backend.servo import H54ServoParams
 
 CLOCKS = ("lockstep", "realtime")
-ROBOTS = ("testbed", "dyros-jet")
+
+
+class HardwareKind(enum.StrEnum):
+    """Which emulated hardware a spec builds (sim_backend/robots.py builds each). hil's robots
+    map onto these (hil/robots/): the emulator knows kinds of hardware, not robots' names."""
+
+    SINGLE_LINKS = "single-links"  # a MuJoCo plant per joint behind its firmware: the testbed
+    HUMANOID = "humanoid"  # a legged robot on one MuJoCo model, from `humanoid` (DYROS-JET)
+
+
+ROBOTS = tuple(HardwareKind)
 
 
 @dataclass(frozen=True)
@@ -117,7 +128,7 @@ class EmulatorSpec:
     reboot_time_s: float = 0.5
     heartbeat_ms: int = 100
     sensor_noise: SensorNoise = field(default_factory=SensorNoise)
-    robot: str = "testbed"  # or "dyros-jet" (with `humanoid`)
+    robot: HardwareKind = HardwareKind.SINGLE_LINKS  # HUMANOID: with `humanoid`
     humanoid: HumanoidSpec | None = None
     usb_latency_timer_s: float = 0.0  # the USB-serial adapter's, realtime only (line.py)
     can_bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S  # a CAN node's restart after NMT reset
@@ -125,10 +136,14 @@ class EmulatorSpec:
     def __post_init__(self) -> None:
         if not self.joints:
             raise ValueError("the emulator needs at least one joint")
-        if self.robot not in ROBOTS:
-            raise ValueError(f"robot must be one of {ROBOTS}, got {self.robot!r}")
-        if (self.robot == "dyros-jet") != (self.humanoid is not None):
-            raise ValueError("a dyros-jet emulator needs its HumanoidSpec, and only it")
+        try:
+            object.__setattr__(self, "robot", HardwareKind(self.robot))
+        except ValueError:
+            raise ValueError(
+                f"robot must be one of {[str(r) for r in HardwareKind]}, got {self.robot!r}"
+            ) from None
+        if (self.robot is HardwareKind.HUMANOID) != (self.humanoid is not None):
+            raise ValueError("a humanoid emulator needs its HumanoidSpec, and only it")
         if self.clock not in CLOCKS:
             raise ValueError(f"clock must be one of {CLOCKS}, got {self.clock!r}")
         for joint in self.joints:  # ValueError naming a model not served or the rates it offers

@@ -36,7 +36,7 @@ from hil.config.figures import (
     ViscousFriction,
 )
 from hil.config.section import Section
-from hil.vocabulary import ControllerKind
+from hil.vocabulary import ControllerKind, Robot
 
 
 class JointModelSection(Section):
@@ -56,9 +56,11 @@ class JointModelSection(Section):
 class ModelSection(Section):
     """The controller's (nominal) model of the robot: Kim et al. Sec. IV-A.
 
-    robot "single_link": every joint drives its own link swinging in a vertical plane
-    (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
-    robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
+    `robot`, one of hil.vocabulary.Robot (its folder hil/robots/<name>/ says what its model is):
+    "testbed" (the old name "single_link" reads as it): every joint drives its own link
+    swinging in a vertical plane (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity
+    torque m g r cos(angle).
+    "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
     a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
     and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
     off the 200 Hz path; `sm_coupling` "diagonal" (the lab's: one design per joint on Sm's
@@ -88,7 +90,7 @@ class ModelSection(Section):
     Each figure's range, and why it ends where it does, is in hil/config/figures.py.
     """
 
-    robot: Literal["single_link", "dyros-jet"] = "single_link"
+    robot: Robot = Field(Robot.TESTBED, strict=False)
     description: str | None = None
     sm_coupling: Coupling = Field(Coupling.DIAGONAL, strict=False)
     # the lab's background thread: 100 ms; from a tick at 200 Hz to 1 s (a step's time: a gain

@@ -359,8 +359,6 @@ class ConfigFile(Section):
         _unique("[[force_torque_sensor]] name", [f.name for f in self.force_torque_sensors])
         for sensor in self.force_torque_sensors:
             _refers(f"[[force_torque_sensor]] {sensor.name!r} can", sensor.can, channels)
-        if self.model.robot == "dyros-jet" and self.model.description is None:
-            raise ValueError("[model] description: the robot 'dyros-jet' needs its URDF")
         for chain in chains:
             ids = [j.dynamixel_id for j in self.joints if self.chain_of(j) == chain]
             _unique(f"dynamixel_id on chain {chain!r}", ids)

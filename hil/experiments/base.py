@@ -26,7 +26,8 @@ An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
     marks           what its plots mark (the obstacle, the pushes, the first contact)
     comparison      its figure across controllers, the paper's claims it checks (`relations`)
                     and the metrics columns of the report table
-Adding an experiment is one new module plus a line in `hil/experiments/__init__.py`.
+Adding an experiment is one new module plus a line in its robot's profile
+(hil/robots/<name>/__init__.py `experiments`).
 """
 
 from __future__ import annotations
