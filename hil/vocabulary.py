@@ -171,12 +171,14 @@ class Robot(enum.StrEnum):
 
     testbed        the paper's 1-DoF testbed (several joints: independent copies of it)
     dyros-jet      the humanoid's 12 leg joints (Kim et al., Sec. IV-C)
+    fixed-base     your own fixed-base robot from its URDF (`[model] description`)
 
     The testbed's old name "single_link" is read as "testbed" (a silent alias: configuration
     files and the meta.json of runs made before the name changed load as they did)."""
 
     TESTBED = "testbed"
     DYROS_JET = "dyros-jet"
+    FIXED_BASE = "fixed-base"
 
     @classmethod
     def _missing_(cls, value: object) -> Robot | None:

@@ -14,9 +14,16 @@ def _humanoid(spec: EmulatorSpec) -> EmulatedHardware:
     return EmulatedHumanoid.build(spec)
 
 
+def _fixed_base(spec: EmulatorSpec) -> EmulatedHardware:
+    from sim_backend.fixed_base.hardware import EmulatedFixedBase  # a robot from its URDF
+
+    return EmulatedFixedBase.build(spec)
+
+
 BUILDERS: Mapping[HardwareKind, Callable[[EmulatorSpec], EmulatedHardware]] = {
     HardwareKind.SINGLE_LINKS: EmulatedTestbed.build,
     HardwareKind.HUMANOID: _humanoid,
+    HardwareKind.FIXED_BASE: _fixed_base,
 }
 
 

@@ -5,7 +5,7 @@ ranges (hil.config.figures), no unknown keys)."""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
@@ -22,6 +22,7 @@ from controller import (
 )
 from controller.walking import CenterOfMassMeasurement
 from hil.config.figures import (
+    Angle,
     Damping,
     GravityMoment,
     IntegralTime,
@@ -37,6 +38,8 @@ from hil.config.figures import (
 )
 from hil.config.section import Section
 from hil.vocabulary import ControllerKind, Robot
+
+ToolPoint = Annotated[float, Field(ge=-2.0, le=2.0)]
 
 
 class JointModelSection(Section):
@@ -76,6 +79,14 @@ class ModelSection(Section):
     velocity_gain_nms_per_rad on the rotor's reflected inertia rotor_inertia_kg_m2, with
     motor_viscous_friction_nms_per_rad: controller/servo_cascade.py; needs [controller]
     discretization "zoh" or "continuous-cost").
+    "fixed-base" (your own robot; hil/robots/fixed_base/) and "manipulator-h": a fixed-base
+    robot of flexible joints from `description` (its URDF): tau_g of (5)-(8) is the joints'
+    generalised gravity and Sm of (19) is M(theta)^-1 (pinocchio, every [[joint]] one of the
+    URDF's joints, in any order; the URDF's other movable joints welded at
+    `locked_joint_angles_rad`, 0 where not named), both posture-dependent (the LQR
+    rescheduled as the humanoid's; `sm_coupling` "diagonal" or "full"). `tool_link` and
+    `tool_point_m` (in that link's frame) name the tool the experiments push at and touch the
+    block with.
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
 
     The position servo's cascade, as `hil identify` fits it (same keys and units, so that its
@@ -109,6 +120,10 @@ class ModelSection(Section):
     motor_viscous_friction_nms_per_rad: ViscousFriction = 1.14  # its gearbox, viscous part
     link_inertia_kg_m2: LinkInertia = 0.376
     gravity_moment_kg_m: GravityMoment = 0.63
+    locked_joint_angles_rad: dict[str, Angle] = Field(default_factory=dict)
+    tool_link: str | None = Field(None, min_length=1)
+    # a point of the tool link: within 2 m of its frame (farther is no tool an arm carries)
+    tool_point_m: tuple[ToolPoint, ToolPoint, ToolPoint] = Field((0.0, 0.0, 0.0), strict=False)
     joint: dict[str, JointModelSection] = Field(default_factory=dict)
 
     def joint_figure(self, joint: str, key: str) -> float:

@@ -70,10 +70,10 @@ class RunScene:
 
     def _mjcf(self, world: WorldObjects) -> str:
         if self.humanoid:
-            from sim_backend.humanoid.description import parse_urdf
             from sim_backend.humanoid.mjcf import build_mjcf
             from sim_backend.humanoid.params import RobotTruthParams
             from sim_backend.spec import FloorBox
+            from sim_backend.urdf_description import parse_urdf
 
             boxes = [FloorBox(centre, size) for centre, size in world.boxes]
             assert self.robot.urdf is not None

@@ -143,11 +143,12 @@ def emulator_spec(
     clock: EmulatorClock | None = None,
     seed: int | None = None,
 ) -> EmulatorSpec:
-    if len(config.dynamixel) != 1 or len(config.can) != 1:
+    if len(config.can) != 1:
         raise ConfigError(
-            f"{config.source}: the emulator serves one Dynamixel chain and one CAN channel "
-            f"(this configuration has {len(config.dynamixel)} and {len(config.can)})"
+            f"{config.source}: the emulator serves one CAN channel (this configuration has "
+            f"{len(config.can)})"
         )
+    chains = [section.name for section in config.dynamixel]
     start = None
     if experiment is not None:
         start = np.broadcast_to(experiment.reference(0.0), (len(config.joints),))
@@ -162,6 +163,7 @@ def emulator_spec(
             motor_direction=j.motor_direction,
             motor_offset_rad=j.motor_offset_rad,
             model=config.actuator_of(j),
+            chain=chains.index(config.chain_of(j)),
         )
         for j in config.joints
     )
@@ -173,6 +175,7 @@ def emulator_spec(
         return EmulatorSpec(
             joints=joints,
             baudrate=config.dynamixel[0].baudrate,
+            chain_baudrates=tuple(section.baudrate for section in config.dynamixel),
             can_bitrate=config.can[0].bitrate,
             force_sensor_node_id=config.force_sensor.node_id,
             period_s=config.loop.period_s,

@@ -52,7 +52,7 @@ class EmulatedHumanoid(PlantClock):
         devices = [
             H54Device(
                 joint.dxl_id,
-                baud_index=baud_index(spec.baudrate),
+                baud_index=baud_index(spec.joint_baudrate(joint)),
                 reboot_time_s=spec.reboot_time_s,
                 eeprom_overrides=leg_eeprom_overrides(),
             )
