@@ -172,6 +172,7 @@ class Robot(enum.StrEnum):
     testbed        the paper's 1-DoF testbed (several joints: independent copies of it)
     dyros-jet      the humanoid's 12 leg joints (Kim et al., Sec. IV-C)
     fixed-base     your own fixed-base robot from its URDF (`[model] description`)
+    manipulator-h  ROBOTIS MANIPULATOR-H, 6 DoF, a fixed-base robot from its published URDF
 
     The testbed's old name "single_link" is read as "testbed" (a silent alias: configuration
     files and the meta.json of runs made before the name changed load as they did)."""
@@ -179,6 +180,7 @@ class Robot(enum.StrEnum):
     TESTBED = "testbed"
     DYROS_JET = "dyros-jet"
     FIXED_BASE = "fixed-base"
+    MANIPULATOR_H = "manipulator-h"
 
     @classmethod
     def _missing_(cls, value: object) -> Robot | None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-from hil.robots import dyros_jet, fixed_base, testbed
+from hil.robots import dyros_jet, fixed_base, manipulator_h, testbed
 from hil.robots.profile import RobotProfile
 from hil.vocabulary import Robot
 
@@ -14,5 +14,6 @@ PROFILES: Mapping[Robot, RobotProfile] = MappingProxyType(
         Robot.TESTBED: testbed.PROFILE,
         Robot.DYROS_JET: dyros_jet.PROFILE,
         Robot.FIXED_BASE: fixed_base.PROFILE,
+        Robot.MANIPULATOR_H: manipulator_h.PROFILE,
     }
 )

@@ -14,7 +14,7 @@ from hil.robots.fixed_base.model import fixed_base_links
 from hil.robots.profile import Comparison, RobotProfile
 from hil.vocabulary import ControllerChoice, ControllerKind, Robot
 
-__all__ = ["PROFILE", "FixedBaseEmulation", "applicable", "check_fixed_base"]
+__all__ = ["PAPER_CHOICES", "PROFILE", "FixedBaseEmulation", "applicable", "check_fixed_base"]
 
 
 def applicable(choices: Sequence[ControllerChoice], config: Config) -> tuple[ControllerChoice, ...]:
@@ -30,7 +30,8 @@ HOLD = HoldExperiment(
     duration_s=5.0,
     start_rad=0.0,
 )
-HOLD_CHOICES = (
+# the paper's four controllers, each a fixed-base robot's comparison runs where it applies
+PAPER_CHOICES = (
     ControllerChoice(ControllerKind.PID),
     ControllerChoice(ControllerKind.GC),
     ControllerChoice(ControllerKind.GC_LQR),
@@ -41,7 +42,7 @@ HOLD_COMPARISON = Comparison(
     directory="fixed-base-comparison",
     title="Your robot holding its zero pose: Kim et al., ICRA 2018, (5)-(8), (25)",
     claims_source="Kim et al., ICRA 2018, Sec. III",
-    plan=lambda config, long_runs: [(HOLD, choice) for choice in applicable(HOLD_CHOICES, config)],
+    plan=lambda config, long_runs: [(HOLD, choice) for choice in applicable(PAPER_CHOICES, config)],
 )
 
 PROFILE = RobotProfile(
