@@ -104,3 +104,13 @@ def test_the_worst_static_load_is_found_at_the_worst_posture() -> None:
     expected = 9.81 * ((0.15 + 0.6 * 0.3) * np.cos(0.5) + 0.6 * 0.125)
     assert load == pytest.approx(expected, rel=1e-6)
     np.testing.assert_allclose(where, (0.5, -0.5), atol=1e-4)
+
+
+def test_without_link_encoders_the_in_process_bus_refuses(tmp_path: Path) -> None:
+    config = tmp_path / "stock.toml"
+    config.write_text(TEMPLATE.replace("encoder_node_id = 6", "encoder_node_id = 0"))
+    from hil.config import ConfigError
+    from hil.wiring.in_process import in_process_bus
+
+    with pytest.raises(ConfigError, match=r"\['elbow'\] have no link encoder"):
+        in_process_bus(load_config(config))
