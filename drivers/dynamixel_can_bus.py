@@ -17,6 +17,10 @@ latency (docs/humanoid.md, "the tick budget"). The emulated robot in lock-step a
 physics on the SYNC and answers the sync read only after it (it reads CAN first), so the
 motor and link readings are of the same instant there; on hardware they are < 1 ms apart.
 `write()` is one Dynamixel sync write of the goal positions per chain.
+
+A joint without a link encoder (`DynamixelCanBusConfig.without_link_encoder`: a stock arm)
+reports its motor angle through the gear as its link angle (theta = theta_m: the gear's
+deflection is not observed), valid when the actuator's reading is.
 """
 
 from __future__ import annotations
@@ -70,11 +74,12 @@ class CanChannelConfig:
 @dataclass(frozen=True)
 class BusLayout:
     """Which device serves which joint: (chain, slot) for the actuator, (channel, slot) for
-    the link encoder, per joint in `joint_names` order. Built from the device names."""
+    the link encoder (None: the joint has none), per joint in `joint_names` order. Built from
+    the device names."""
 
     joint_names: tuple[str, ...]
     actuator_slot: tuple[tuple[int, int], ...]
-    encoder_slot: tuple[tuple[int, int], ...]
+    encoder_slot: tuple[tuple[int, int] | None, ...]
 
     @classmethod
     def from_names(
@@ -82,6 +87,7 @@ class BusLayout:
         joint_names: Sequence[str],
         chains: Sequence[DynamixelChainConfig],
         channels: Sequence[CanChannelConfig],
+        without_link_encoder: Sequence[str] = (),
     ) -> BusLayout:
         actuators = {
             joint.name: (c, s)
@@ -94,20 +100,24 @@ class BusLayout:
             for s, enc in enumerate(channel.encoders)
         }
         names = tuple(joint_names)
-        for what, table, count in (
-            ("actuator", actuators, sum(len(c.joints) for c in chains)),
-            ("link encoder", encoders, sum(len(c.encoders) for c in channels)),
+        bare = set(without_link_encoder)
+        if bare - set(names):
+            raise ValueError(f"joints without a link encoder are no joints: {sorted(bare)}")
+        sensed = tuple(name for name in names if name not in bare)
+        for what, table, count, needing in (
+            ("actuator", actuators, sum(len(c.joints) for c in chains), names),
+            ("link encoder", encoders, sum(len(c.encoders) for c in channels), sensed),
         ):
-            missing = [name for name in names if name not in table]
-            extra = sorted(set(table) - set(names))
-            if missing or extra or count != len(names):
+            missing = [name for name in needing if name not in table]
+            extra = sorted(set(table) - set(needing))
+            if missing or extra or count != len(needing):
                 raise ValueError(
-                    f"every joint needs exactly one {what}: joints {list(names)}, "
+                    f"every joint needs exactly one {what}: joints {list(needing)}, "
                     f"{what}s named {sorted(table)}"
                     + (f"; missing for {missing}" if missing else "")
                     + (f"; not a joint: {extra}" if extra else "")
                 )
-        return cls(names, tuple(actuators[n] for n in names), tuple(encoders[n] for n in names))
+        return cls(names, tuple(actuators[n] for n in names), tuple(encoders.get(n) for n in names))
 
     def joints_of_chain(self, chain: int) -> np.ndarray:
         """Joint indices of a chain's slots, in slot order."""
@@ -115,8 +125,16 @@ class BusLayout:
         return np.array([j for _, j in pairs], dtype=np.intp)
 
     def joints_of_channel(self, channel: int) -> np.ndarray:
-        pairs = sorted((slot, j) for j, (c, slot) in enumerate(self.encoder_slot) if c == channel)
+        pairs = sorted(
+            (where[1], j)
+            for j, where in enumerate(self.encoder_slot)
+            if where and where[0] == channel
+        )
         return np.array([j for _, j in pairs], dtype=np.intp)
+
+    @property
+    def joints_without_link_encoder(self) -> np.ndarray:
+        return np.array([j for j, where in enumerate(self.encoder_slot) if where is None], np.intp)
 
 
 @dataclass(frozen=True)
@@ -138,6 +156,8 @@ class DynamixelCanBusConfig:
     # every command raises BusError; the link encoders are still brought up (NMT, TPDO
     # settings), which they need to send their position at all.
     read_only: bool = False
+    # joints with no link encoder: their motor angle stands for the link's (module docstring)
+    without_link_encoder: tuple[str, ...] = ()
     layout: BusLayout = field(init=False)
 
     def __post_init__(self) -> None:
@@ -145,7 +165,9 @@ class DynamixelCanBusConfig:
             raise ValueError("the bus needs at least one Dynamixel chain and one CAN channel")
         if not self.link_timeout_s > 0:
             raise ValueError("link_timeout_s must be > 0")
-        layout = BusLayout.from_names(self.joint_names, self.chains, self.can_channels)
+        layout = BusLayout.from_names(
+            self.joint_names, self.chains, self.can_channels, self.without_link_encoder
+        )
         object.__setattr__(self, "layout", layout)
 
 
@@ -175,6 +197,7 @@ class DynamixelCanBus(JointBus):
             config.layout.joints_of_channel(c) for c in range(len(config.can_channels))
         ]
         identity = np.arange(len(config.joint_names))
+        self._without_link = config.layout.joints_without_link_encoder
         self._in_joint_order = (
             len(self._chain_joints) == len(self._channel_joints) == 1
             and np.array_equal(self._chain_joints[0], identity)
@@ -282,6 +305,11 @@ class DynamixelCanBus(JointBus):
             sample.link_angle_rad[joints] = link.angles_rad
             sample.link_valid[joints] = link.valid
             sample.link_age_s[joints] = link.age_s
+        bare = self._without_link
+        if bare.size:  # no link encoder: the motor angle through the gear stands for it
+            sample.link_angle_rad[bare] = sample.motor_angle_rad[bare]
+            sample.link_valid[bare] = sample.motor_valid[bare]
+            sample.link_age_s[bare] = 0.0
         return sample
 
     def _sample_in_joint_order(self, motor: DynamixelState, link: LinkReading) -> JointSample:
@@ -394,12 +422,14 @@ class DynamixelCanBus(JointBus):
         out = []
         for j in range(self.n_joints):
             chain, slot = layout.actuator_slot[j]
-            channel, enc_slot = layout.encoder_slot[j]
-            node = self.config.can_channels[channel].encoders[enc_slot].node_id
+            link_sensor = "none (the motor encoder through the gear)"
+            if (where := layout.encoder_slot[j]) is not None:
+                node = self.config.can_channels[where[0]].encoders[where[1]].node_id
+                link_sensor = f"link encoder node {node}"
             out.append(
                 JointDevices(
                     actuator=self._actuator_label(self.chains[chain], slot),
-                    link_sensor=f"link encoder node {node}",
+                    link_sensor=link_sensor,
                 )
             )
         return tuple(out)

@@ -43,7 +43,7 @@ from drivers.joint_bus import JointSample
 from hil.config import Config, ConfigError, load_config
 from hil.controllers import ControllerLoadError
 from hil.controllers.choice import choose
-from hil.experiments import Experiment, get_experiment
+from hil.experiments import Experiment
 from hil.loop import LoopClock, StopFlag
 from hil.loop.clock import Tick
 from hil.loop.run_record import RunRecord
@@ -53,6 +53,7 @@ from hil.loop.timeline import Phase
 from hil.output.log_process import LogWriterLost, open_run_log
 from hil.output.records import RunResult
 from hil.output.rundir import create_run_dir, timestamp
+from hil.robots import get_experiment
 from hil.session.session import ConnectionOverrides, Session, Setup
 from hil.vocabulary import ControllerChoice, RunEnding, Termination
 
@@ -67,7 +68,7 @@ class RunStopped(Exception):
 def open_robot(
     config: str | Path | Config | None = None,
     *,
-    robot: str = "testbed",
+    robot: str | None = None,
     setup: Setup | str = Setup.EMBEDDED,
     attach: Mapping[str, Any] | None = None,
     realtime: bool = False,
@@ -76,7 +77,8 @@ def open_robot(
     quiet: bool = True,
 ) -> Robot:
     """The robot a configuration describes (a path, a `Config`, or None for the built-in one of
-    `robot`: "testbed" or "dyros-jet"), where `setup` says:
+    `robot`, a name of hil.vocabulary.Robot: "testbed", the default, or "dyros-jet"), where
+    `setup` says:
 
     Setup.EMBEDDED    a fresh emulator per run, lock-step (deterministic), or on the wall clock
                       with `realtime` (the default: no hardware needed)
@@ -91,7 +93,10 @@ def open_robot(
     >>> robot.description
     'emulated testbed, lock-step; GC compliance: joint'
     """
-    loaded = config if isinstance(config, Config) else load_config(config, robot=robot)
+    if isinstance(config, Config):
+        loaded = config
+    else:
+        loaded = load_config(config) if robot is None else load_config(config, robot=robot)
     where = Setup(setup)
     if (where is Setup.ATTACHED) != (attach is not None):
         raise ConfigError("attach= goes with setup=Setup.ATTACHED (the JSON `hil emulate` printed)")

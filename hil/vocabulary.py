@@ -30,6 +30,7 @@ __all__ = [
     "Reaction",
     "ReactionPolicy",
     "RestCondition",
+    "Robot",
     "RunEnding",
     "SafetyCause",
     "SafetyEvent",
@@ -162,6 +163,31 @@ class RunEnding:
 
     def __str__(self) -> str:
         return self.text
+
+
+class Robot(enum.StrEnum):
+    """The robots hil knows, each one folder (hil/robots/<name>/, registered in
+    hil/robots/registry.py): what `[model] robot` and `--robot` name.
+
+    testbed        the paper's 1-DoF testbed (several joints: independent copies of it)
+    dyros-jet      the humanoid's 12 leg joints (Kim et al., Sec. IV-C)
+    fixed-base     your own fixed-base robot from its URDF (`[model] description`)
+    manipulator-h  ROBOTIS MANIPULATOR-H, 6 DoF, a fixed-base robot from its published URDF
+
+    The testbed's old name "single_link" is read as "testbed" (a silent alias: configuration
+    files and the meta.json of runs made before the name changed load as they did)."""
+
+    TESTBED = "testbed"
+    DYROS_JET = "dyros-jet"
+    FIXED_BASE = "fixed-base"
+    MANIPULATOR_H = "manipulator-h"
+
+    @classmethod
+    def _missing_(cls, value: object) -> Robot | None:
+        return cls.TESTBED if value == _TESTBED_OLD_NAME else None
+
+
+_TESTBED_OLD_NAME = "single_link"  # [model] robot before the robots had one name each
 
 
 class EmulatorClock(enum.StrEnum):

@@ -150,10 +150,13 @@ class EncoderSources:
 
 
 def link_encoders(spec: EmulatorSpec, sources: EncoderSources) -> list[LinkEncoderNode]:
-    """A CiA 406 link encoder per joint, latching `sources.value(joint)` (its link angle at
-    the SYNC's instant, see `SampleInstant`), mounted as the spec says."""
+    """A CiA 406 link encoder per joint that has one (`encoder_node_id` 0: none, a stock
+    arm), latching `sources.value(joint)` (its link angle at the SYNC's instant, see
+    `SampleInstant`), mounted as the spec says."""
     nodes = []
     for index, joint in enumerate(spec.joints):
+        if not joint.encoder_node_id:
+            continue
         nodes.append(
             LinkEncoderNode(
                 joint.encoder_node_id,
@@ -240,7 +243,7 @@ class EmulatedTestbed(PlantClock):
             device = DynamixelProDevice(
                 joint_spec.dxl_id,
                 model=joint_spec.model,
-                baud_index=baud_index(spec.baudrate, joint_spec.model),
+                baud_index=baud_index(spec.joint_baudrate(joint_spec), joint_spec.model),
                 reboot_time_s=spec.reboot_time_s,
             )
             joint = EmulatedJoint(

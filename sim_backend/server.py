@@ -80,13 +80,24 @@ class Emulator:
         self.encoders = self.hardware.encoders
         nodes = sensor_nodes(self.hardware)
         self.testbed = self.hardware
-        self.chain = DynamixelChain(self.devices, enforce_baud=True)
-        self.line = DynamixelLine(
-            self.chain,
-            realtime=self.realtime,
-            adapter_latency_s=spec.usb_latency_timer_s if self.realtime else 0.0,
-            hold_reads=not self.realtime,
-        )
+        # one chain and one pty per RS-485 chain of the spec, its joints' devices on it
+        self.chains = [
+            DynamixelChain(
+                [d for d, j in zip(self.devices, spec.joints, strict=True) if j.chain == chain],
+                enforce_baud=True,
+            )
+            for chain in range(len(spec.chain_bauds))
+        ]
+        self.lines = [
+            DynamixelLine(
+                chain,
+                realtime=self.realtime,
+                adapter_latency_s=spec.usb_latency_timer_s if self.realtime else 0.0,
+                hold_reads=not self.realtime,
+            )
+            for chain in self.chains
+        ]
+        self.chain, self.line = self.chains[0], self.lines[0]  # the first (one-chain robots)
         self.segment = CanSegment(nodes, bitrate=spec.can_bitrate)
         self.slcan = SlcanPty(bus_bitrate=spec.can_bitrate)
         # The nodes were powered before any host connected: their power-on boot-ups go out now,
@@ -113,6 +124,9 @@ class Emulator:
             "dynamixel_port": self.line.port_path,
             "baudrate": self.spec.baudrate,
             "ids": [j.dxl_id for j in self.spec.joints],
+            # every chain, in the spec's order (the first is dynamixel_port's)
+            "dynamixel_ports": [line.port_path for line in self.lines],
+            "baudrates": list(self.spec.chain_bauds),
             "can": {
                 "interface": "slcan",
                 "channel": self.slcan.port_path,
@@ -126,7 +140,7 @@ class Emulator:
                 # depend on it: it waits in select() on the port (drivers/canbus).
                 "timeout": 0.001,
             },
-            "encoder_node_ids": [j.encoder_node_id for j in self.spec.joints],
+            "encoder_node_ids": [j.encoder_node_id for j in self.spec.joints],  # 0: none
             "force_sensor_node_id": self.spec.force_sensor_node_id or None,
             "clock": self.spec.clock,
             "period_s": self.spec.period_s,
@@ -140,7 +154,7 @@ class Emulator:
             "scenario_faults_started": [
                 number for number, fired in enumerate(self.fault_schedule.fired) if fired
             ],
-            "dynamixel": dataclasses.asdict(self.chain.faults.fired),
+            "dynamixel": _summed([dataclasses.asdict(c.faults.fired) for c in self.chains]),
             "encoders": {
                 str(node.node_id): dataclasses.asdict(node.fault_counts) for node in self.encoders
             },
@@ -153,13 +167,13 @@ class Emulator:
             os.write(self._wake_write, b"\0")
 
     def run(self) -> None:
-        line, slcan = self.line, self.slcan
-        fds = [slcan.fileno(), line.fileno(), self._wake_read]
+        lines, slcan = self.lines, self.slcan
+        fds = [slcan.fileno(), *(line.fileno() for line in lines), self._wake_read]
         next_physics = time.monotonic()
         while self._running:
             now = time.monotonic()
             timeout = IDLE_WAIT_S
-            due = line.next_due_s()
+            due = self._next_line_due_s()
             if due is not None:
                 timeout = min(timeout, max(0.0, due - now))
             can_due = self.segment.next_due_s()  # boot-up, heartbeat: on the nodes' clock
@@ -177,14 +191,19 @@ class Emulator:
             # CAN first: a SYNC must step the plant before a later Dynamixel read is answered.
             if slcan.fileno() in readable:
                 self._on_host_frames(slcan.read_frames(flush=False))
-            if line.fileno() in readable:
-                line.on_readable()
-            else:
-                line.on_idle()
-            if line.holds_reads:  # lock-step: a SYNC sent before the read steps the plant first
+            for line in lines:
+                if line.fileno() in readable:
+                    line.on_readable()
+                else:
+                    line.on_idle()
+            if any(line.holds_reads for line in lines):
+                # lock-step: a SYNC sent before the read steps the plant first
                 self._on_host_frames(slcan.read_frames(flush=False))
-                line.release_held_reads()
-            line.flush_due()
+                for line in lines:
+                    if line.holds_reads:
+                        line.release_held_reads()
+            for line in lines:
+                line.flush_due()
             if self.realtime:
                 next_physics = self._follow_wall_clock()
             # the nodes' own frames (boot-up, heartbeat) and their reaction to a changed fault;
@@ -195,6 +214,11 @@ class Emulator:
                 every_node = self._node_faults_changed  # (a changed fault acts on a poll)
                 self._node_faults_changed = False
                 slcan.send_frames(self.segment.poll(node_time, due_only=not every_node))
+
+    def _next_line_due_s(self) -> float | None:
+        """The soonest any chain's line needs attention (None: none does)."""
+        due = [t for line in self.lines if (t := line.next_due_s()) is not None]
+        return min(due) if due else None
 
     def _on_host_frames(self, frames: list[can.Message]) -> None:
         """The host's frames on the bus; the adapter's answers and the nodes' replies go back
@@ -212,7 +236,8 @@ class Emulator:
         if self.realtime:  # the encoders latch now, between two physics steps
             self.hardware.sample_instant.after_step_s = self._time_past_last_step()
         else:
-            self.line.drain()  # goals written before this SYNC act over the coming period
+            for line in self.lines:  # goals written before this SYNC act over the coming period
+                line.drain()
             if self.sync_count > 0:
                 self.testbed.advance(self.spec.period_s)
         self.truth.write(self.sync_count, self.testbed.time_s)
@@ -235,7 +260,7 @@ class Emulator:
             # even when the plant cannot keep up with the wall clock (12 joints on a loaded
             # machine): replies stay on time, the state they report lags instead
             steps = min(math.floor(behind / dt), MAX_PHYSICS_STEPS_PER_TURN)
-            reply_due = self.line.next_due_s()
+            reply_due = self._next_line_due_s()
             start = time.monotonic()
             if reply_due is not None and reply_due - start < steps * self._step_cost_s:
                 return reply_due  # a reply falls due first: out with it, then the steps
@@ -262,19 +287,25 @@ class Emulator:
         if not self.fault_schedule.faults and self.sync_count > 1:
             return  # no fault injected: the first SYNC's application holds for the run
         active = self.fault_schedule.at(self.testbed.scenario_time_s)
-        faults = self.chain.faults
-        ids = [joint.dxl_id for joint in self.spec.joints]
-        faults.drop_next_replies += len(active.drop_next)
-        faults.corrupt_next_replies += len(active.corrupt_next)
-        for target, joints in (
-            (faults.silent_ids, active.silent),
-            (faults.drop_reply_ids, active.dropped),
-            (faults.corrupt_crc_ids, active.corrupted),
-        ):
-            target.clear()
-            target.update(ids[j] for j in joints)
+        joints = self.spec.joints
+        for chain, line_chain in enumerate(self.chains):
+            faults = line_chain.faults
+            mine = {j for j, joint in enumerate(joints) if joint.chain == chain}
+            faults.drop_next_replies += sum(1 for j in active.drop_next if j in mine)
+            faults.corrupt_next_replies += sum(1 for j in active.corrupt_next if j in mine)
+            for target, chosen in (
+                (faults.silent_ids, active.silent),
+                (faults.drop_reply_ids, active.dropped),
+                (faults.corrupt_crc_ids, active.corrupted),
+            ):
+                target.clear()
+                target.update(joints[j].dxl_id for j in chosen if j in mine)
+        sensed = [j for j, joint in enumerate(joints) if joint.encoder_node_id]  # the nodes'
         for node, mode, noise in zip(
-            self.encoders, active.encoder_mode, active.encoder_noise_counts_rms, strict=True
+            self.encoders,
+            [active.encoder_mode[j] for j in sensed],
+            [active.encoder_noise_counts_rms[j] for j in sensed],
+            strict=True,
         ):
             if node.fault.mode != mode or node.fault.noise_counts_rms != noise:
                 node.fault.mode = mode
@@ -283,11 +314,17 @@ class Emulator:
 
     def close(self) -> None:
         self.truth.close()
-        self.line.close()
+        for line in self.lines:
+            line.close()
         self.slcan.close()
         for fd in (self._wake_read, self._wake_write):
             with contextlib.suppress(OSError):
                 os.close(fd)
+
+
+def _summed(counts: list[dict[str, int]]) -> dict[str, int]:
+    """Per-key sums of the chains' fault counters."""
+    return {key: sum(count[key] for count in counts) for key in counts[0]}
 
 
 def serve_spec_file(path: str) -> int:

@@ -3,6 +3,7 @@ experiment's world) and the emulator process reads (as JSON: sim_backend/spec_js
 
 from __future__ import annotations
 
+import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -18,7 +19,18 @@ from sim_backend.scenario import Scenario
 from sim_backend.servo import H54ServoParams
 
 CLOCKS = ("lockstep", "realtime")
-ROBOTS = ("testbed", "dyros-jet")
+
+
+class HardwareKind(enum.StrEnum):
+    """Which emulated hardware a spec builds (sim_backend/robots.py builds each). hil's robots
+    map onto these (hil/robots/): the emulator knows kinds of hardware, not robots' names."""
+
+    SINGLE_LINKS = "single-links"  # a MuJoCo plant per joint behind its firmware: the testbed
+    HUMANOID = "humanoid"  # a legged robot on one MuJoCo model, from `humanoid` (DYROS-JET)
+    FIXED_BASE = "urdf-fixed-base"  # any fixed-base robot from its URDF, from `fixed_base`
+
+
+ROBOTS = tuple(HardwareKind)
 
 
 @dataclass(frozen=True)
@@ -64,18 +76,91 @@ class HumanoidSpec:
 
 
 @dataclass(frozen=True)
+class ToolPushSpec:
+    """A force [N] (world frame) at the tool point from start_s (scenario time) for duration_s."""
+
+    start_s: float
+    duration_s: float
+    force_n: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        force = tuple(float(v) for v in self.force_n)
+        if len(force) != 3 or not all(math.isfinite(v) for v in force):
+            raise ValueError(f"a tool push's force_n must be 3 finite numbers, got {force}")
+        if not (self.start_s >= 0 and self.duration_s > 0):
+            raise ValueError("a tool push needs start_s >= 0 and duration_s > 0")
+        object.__setattr__(self, "force_n", force)
+
+
+@dataclass(frozen=True)
+class BlockSpec:
+    """A rigid box fixed in the world [m] (centre, full size, axis-aligned) that the tool may
+    touch, its contact force measured by the CAN force sensor."""
+
+    centre_m: tuple[float, float, float]
+    size_m: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        centre = tuple(float(v) for v in self.centre_m)
+        size = tuple(float(v) for v in self.size_m)
+        if len(centre) != 3 or not all(math.isfinite(v) for v in centre):
+            raise ValueError(f"a block's centre_m must be 3 finite numbers, got {centre}")
+        if len(size) != 3 or not all(math.isfinite(v) and v > 0 for v in size):
+            raise ValueError(f"a block's size_m must be 3 finite sizes > 0, got {size}")
+        object.__setattr__(self, "centre_m", centre)
+        object.__setattr__(self, "size_m", size)
+
+
+@dataclass(frozen=True)
+class FixedBaseSpec:
+    """What the emulator needs beyond the buses to build a fixed-base robot from its URDF.
+
+    urdf_text: the robot description (the same the host's model reads).
+    joint_names: the URDF joints that are flexible joints, one per spec joint, in its order.
+    locked_angles_rad: every other movable joint, welded at this angle (0 where not named).
+    initial_angles_rad: the link angles it rests at, statically loaded, at power-on.
+    tool_link / tool_point_m: the tool: a sphere of tool_radius_m at this point of the link's
+        frame, where pushes act and what may touch the block (no tool: "").
+    block: a box in the world the tool may touch (None: none).
+    tool_pushes: pushes at the tool point (scenario time).
+    truth: FixedBaseTruthParams overrides (plain values; sim_backend/fixed_base/params.py).
+    """
+
+    urdf_text: str
+    joint_names: tuple[str, ...]
+    initial_angles_rad: tuple[float, ...]
+    locked_angles_rad: Mapping[str, float] = field(default_factory=dict)
+    tool_link: str = ""
+    tool_point_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tool_radius_m: float = 0.02
+    block: BlockSpec | None = None
+    tool_pushes: tuple[ToolPushSpec, ...] = ()
+    truth: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if len(self.initial_angles_rad) != len(self.joint_names):
+            raise ValueError("a fixed-base robot needs one initial angle per joint")
+        if (self.block is not None or self.tool_pushes) and not self.tool_link:
+            raise ValueError("a block or a push at the tool needs the robot's tool_link")
+        if not (math.isfinite(self.tool_radius_m) and self.tool_radius_m > 0):
+            raise ValueError(f"tool_radius_m must be > 0, got {self.tool_radius_m}")
+
+
+@dataclass(frozen=True)
 class EmulatedJointSpec:
-    """One emulated joint: its bus addresses, how its sensors are mounted, and its actuator's
-    model (an e-Manual name of the DYNAMIXEL PRO family, sim_backend/dynamixel/models.py)."""
+    """One emulated joint: its bus addresses (`chain`: which of the spec's RS-485 chains its
+    actuator is on), how its sensors are mounted, and its actuator's model (an e-Manual name
+    of the DYNAMIXEL PRO family, sim_backend/dynamixel/models.py)."""
 
     dxl_id: int
-    encoder_node_id: int
+    encoder_node_id: int  # 0: the joint has no link encoder (no node on the CAN bus)
     encoder_counts_per_rev: int = 983_040
     encoder_direction: int = 1
     encoder_offset_rad: float = 0.0
     motor_direction: int = 1
     motor_offset_rad: float = 0.0
     model: str = DEFAULT_MODEL
+    chain: int = 0
 
 
 @dataclass(frozen=True)
@@ -102,7 +187,10 @@ class SensorNoise:
 
 @dataclass(frozen=True)
 class EmulatorSpec:
-    """Everything the emulator process needs; `hil` builds it from the configuration file."""
+    """Everything the emulator process needs; `hil` builds it from the configuration file.
+
+    chain_baudrates: one RS-485 chain (a pty each) per entry, at its baud rate; empty: one
+    chain at `baudrate`. Each joint's `chain` is an index into them."""
 
     joints: tuple[EmulatedJointSpec, ...]
     baudrate: int = 3_000_000
@@ -117,23 +205,48 @@ class EmulatorSpec:
     reboot_time_s: float = 0.5
     heartbeat_ms: int = 100
     sensor_noise: SensorNoise = field(default_factory=SensorNoise)
-    robot: str = "testbed"  # or "dyros-jet" (with `humanoid`)
+    robot: HardwareKind = HardwareKind.SINGLE_LINKS  # HUMANOID: with `humanoid`
     humanoid: HumanoidSpec | None = None
+    fixed_base: FixedBaseSpec | None = None
     usb_latency_timer_s: float = 0.0  # the USB-serial adapter's, realtime only (line.py)
     can_bootup_delay_s: float = DEFAULT_BOOTUP_DELAY_S  # a CAN node's restart after NMT reset
     truth_log: str = ""  # where the emulator writes its ground truth per SYNC ("" none)
+    chain_baudrates: tuple[int, ...] = ()
+
+    @property
+    def chain_bauds(self) -> tuple[int, ...]:
+        """Each chain's baud rate (one chain at `baudrate` when `chain_baudrates` is empty)."""
+        return tuple(self.chain_baudrates) or (self.baudrate,)
+
+    def joint_baudrate(self, joint: EmulatedJointSpec) -> int:
+        """The baud rate of the chain a joint's actuator is on."""
+        return self.chain_bauds[joint.chain]
 
     def __post_init__(self) -> None:
         if not self.joints:
             raise ValueError("the emulator needs at least one joint")
-        if self.robot not in ROBOTS:
-            raise ValueError(f"robot must be one of {ROBOTS}, got {self.robot!r}")
-        if (self.robot == "dyros-jet") != (self.humanoid is not None):
-            raise ValueError("a dyros-jet emulator needs its HumanoidSpec, and only it")
+        try:
+            object.__setattr__(self, "robot", HardwareKind(self.robot))
+        except ValueError:
+            raise ValueError(
+                f"robot must be one of {[str(r) for r in HardwareKind]}, got {self.robot!r}"
+            ) from None
+        if (self.robot is HardwareKind.HUMANOID) != (self.humanoid is not None):
+            raise ValueError("a humanoid emulator needs its HumanoidSpec, and only it")
+        if (self.robot is HardwareKind.FIXED_BASE) != (self.fixed_base is not None):
+            raise ValueError("a fixed-base emulator needs its FixedBaseSpec, and only it")
+        if self.fixed_base is not None and len(self.fixed_base.joint_names) != len(self.joints):
+            raise ValueError("a fixed-base robot names one URDF joint per emulated joint")
         if self.clock not in CLOCKS:
             raise ValueError(f"clock must be one of {CLOCKS}, got {self.clock!r}")
+        chains = len(self.chain_bauds)
         for joint in self.joints:  # ValueError naming a model not served or the rates it offers
-            device_model(joint.model).baud_index(self.baudrate)
+            if not 0 <= joint.chain < chains:
+                raise ValueError(f"joint {joint.dxl_id}: chain {joint.chain} of {chains}")
+            device_model(joint.model).baud_index(self.joint_baudrate(joint))
+        empty = sorted(set(range(chains)) - {joint.chain for joint in self.joints})
+        if empty:
+            raise ValueError(f"chains {empty} have no joint")
         if not self.period_s > 0:
             raise ValueError("period_s must be > 0")
         if not 0 <= self.usb_latency_timer_s <= 0.255:  # FTDI: 1..255 ms

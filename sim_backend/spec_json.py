@@ -10,11 +10,14 @@ from sim_backend.plant import ObstacleParams, TestbedPlantParams
 from sim_backend.scenario import Scenario
 from sim_backend.servo import H54ServoParams
 from sim_backend.spec import (
+    BlockSpec,
     EmulatedJointSpec,
     EmulatorSpec,
+    FixedBaseSpec,
     FloorBox,
     HumanoidSpec,
     SensorNoise,
+    ToolPushSpec,
 )
 
 
@@ -46,6 +49,7 @@ def spec_from_json(text: str) -> EmulatorSpec:
         usb_latency_timer_s=raw["usb_latency_timer_s"],
         can_bootup_delay_s=raw["can_bootup_delay_s"],
         truth_log=raw.get("truth_log", ""),
+        chain_baudrates=tuple(raw.get("chain_baudrates", ())),
         robot=raw["robot"],
         humanoid=HumanoidSpec(
             urdf_text=humanoid["urdf_text"],
@@ -57,4 +61,26 @@ def spec_from_json(text: str) -> EmulatorSpec:
         )
         if humanoid
         else None,
+        fixed_base=_fixed_base(raw.get("fixed_base")),
+    )
+
+
+def _fixed_base(raw: dict | None) -> FixedBaseSpec | None:
+    if raw is None:
+        return None
+    block = raw.get("block")
+    return FixedBaseSpec(
+        urdf_text=raw["urdf_text"],
+        joint_names=tuple(raw["joint_names"]),
+        initial_angles_rad=tuple(raw["initial_angles_rad"]),
+        locked_angles_rad=dict(raw["locked_angles_rad"]),
+        tool_link=raw["tool_link"],
+        tool_point_m=tuple(raw["tool_point_m"]),
+        tool_radius_m=raw["tool_radius_m"],
+        block=BlockSpec(tuple(block["centre_m"]), tuple(block["size_m"])) if block else None,
+        tool_pushes=tuple(
+            ToolPushSpec(p["start_s"], p["duration_s"], tuple(p["force_n"]))
+            for p in raw["tool_pushes"]
+        ),
+        truth=raw["truth"],
     )

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+# DYROS-JET's leg joints and upper body: the controller's one copy (the emulator holds its own,
+# sim_backend/humanoid/params.py; tests/hil/test_dyros_jet_facts.py keeps them equal).
 LEFT_LEG_JOINT_NAMES: tuple[str, ...] = (
     "L_HipYaw",
     "L_HipRoll",

@@ -1,4 +1,6 @@
-"""DYROS-JET figures the walking pattern generator uses, each with its public source.
+"""DYROS-JET figures the walking pattern generator uses, each with its public source (the leg
+joints' names and the upper body's posture are controller/humanoid/leg_model.py's, the
+controller's one copy).
 
 Leg geometry (joint placements and axes): DYROS-JET URDF, psh117/dyros_jet,
 `dyros_jet_description/robots/dyros_jet_robot.urdf`, BSD-2-Clause (c) 2017 Suhan Park.
@@ -26,24 +28,6 @@ the first swing foot": the lab's footstep planner, psh117/dyros_jet,
 """
 
 from __future__ import annotations
-
-# Leg joints, in the order the lab's controller uses: hip yaw, roll, pitch, knee, ankle pitch, roll.
-LEFT_LEG_JOINT_NAMES: tuple[str, ...] = (
-    "L_HipYaw",
-    "L_HipRoll",
-    "L_HipPitch",
-    "L_KneePitch",
-    "L_AnklePitch",
-    "L_AnkleRoll",
-)
-RIGHT_LEG_JOINT_NAMES: tuple[str, ...] = (
-    "R_HipYaw",
-    "R_HipRoll",
-    "R_HipPitch",
-    "R_KneePitch",
-    "R_AnklePitch",
-    "R_AnkleRoll",
-)
 
 HIP_IN_PELVIS_LEFT_M: tuple[float, float, float] = (0.0, 0.105, -0.1119)
 HIP_IN_PELVIS_RIGHT_M: tuple[float, float, float] = (0.0, -0.105, -0.1119)

@@ -67,6 +67,8 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
 
     bus: a python-can bus, built by the caller from configuration; the reader owns it from
     now on and shuts it down in `close()`.
+    encoders: may be none (a channel of force sensors only, or of the SYNC alone, which a
+    lock-step emulator steps its plant on: a robot without link encoders).
     clock: the time base of `sync_time_s`, ages and heartbeat timing (default
     time.monotonic; a lock-step loop passes its simulated clock so the data are deterministic).
     Deadlines (`collect`'s timeout, open's waits) always use real time.
@@ -95,8 +97,6 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
         configs: list[LinkEncoderConfig | ForceSensorConfig | ForceTorqueSensorConfig] = list(
             encoders
         )
-        if not configs:
-            raise ValueError("LinkEncoderReader needs at least one LinkEncoderConfig")
         if force_sensor is not None:
             configs.append(force_sensor)
         configs.extend(force_torque_sensors)

@@ -1,7 +1,8 @@
 """`hil bench loop`'s first part: each controller's compute per tick (`step` +
-`notify_applied`) for 1 and 12 joints (on the humanoid: its 12 legs with the pinocchio gravity
-compensator about the standing posture), all cases interleaved tick by tick so that a burst of
-machine load falls on all of them alike."""
+`notify_applied`) for 1 and 12 joints (on a robot whose model depends on its posture, the
+humanoid: its own joints with its gravity compensator about its bench experiment's first
+posture, its standing one), all cases interleaved tick by tick so that a burst of machine load
+falls on all of them alike."""
 
 from __future__ import annotations
 
@@ -15,9 +16,9 @@ from controller import CONTROLLER_NAMES, JointController
 from drivers.timing import DurationStats as Distribution
 from hil.bench.bus import JOINT_COUNTS
 from hil.bench.common import config_with_joints
-from hil.config import Config, robot_of
-from hil.experiments import STAND
+from hil.config import Config
 from hil.loop import build_controller, robot_model
+from hil.robots import profile_of
 from hil.vocabulary import ControllerChoice
 
 CONTROLLER_WARMUP_TICKS = 20
@@ -51,11 +52,12 @@ def bench_controllers(
     """
     period_s = base.loop.period_s
     kdist = base.controller.kdist
-    humanoid = robot_of(base) == "dyros-jet"
-    if humanoid:  # the robot's own 12 legs, about its standing posture
+    bench = profile_of(base).bench_experiment
+    robot = robot_model(base)
+    own_joints = robot.rescheduled
+    if own_joints:  # the robot's own joints, about its bench experiment's first posture
         joint_counts = (len(base.joints),)
-        robot = robot_model(base)
-        posture = np.asarray(STAND.reference(0.0))
+        posture = np.broadcast_to(bench.reference(0.0), (len(base.joints),))
     cases: list[tuple[int, str]] = [(n, name) for n in joint_counts for name in names]
     controllers: list[JointController] = []
     build_s: list[float] = []
@@ -64,15 +66,15 @@ def bench_controllers(
     for n_joints, name in cases:
         started = time.perf_counter()
         choice = ControllerChoice(name, kdist)
-        if humanoid:
-            contact = robot.lqr_contacts([STAND.support(0.0)])[0]
+        if own_joints:
+            contact = robot.lqr_contacts([bench.support(0.0)])[0]
             controller = build_controller(base, choice, period_s, robot, posture, contact)
         else:
             controller = build_controller(config_with_joints(base, n_joints), choice, period_s)
         build_s.append(time.perf_counter() - started)
         if n_joints not in inputs:
             inputs[n_joints] = _controller_inputs(n_joints, total, period_s)
-            if humanoid:
+            if own_joints:
                 inputs[n_joints] = tuple(a + posture for a in inputs[n_joints])  # type: ignore[assignment]
         motor, link, reference = inputs[n_joints]
         controller.reset(motor[0], link[0], reference[0])

@@ -43,17 +43,19 @@ from hil.bench.compute import bench_controllers
 from hil.bench.machine import bench_cpu_stalls, bench_idle_sleeper, stall_counts_longer_than
 from hil.bench.reschedule import bench_gain_schedule, gain_schedule_lines
 from hil.bench.speed import bench_speed, speed_text
-from hil.config import Config, robot_of
-from hil.experiments import IMPACT, STAND, Experiment
+from hil.config import Config
+from hil.experiments import Experiment
 from hil.loop import (
     LockstepClock,
     LoopClock,
     RunRequest,
     Tick,
     WallClock,
+    robot_model,
     run_experiment,
 )
 from hil.output.records import RunResult
+from hil.robots import profile_of
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
@@ -124,8 +126,9 @@ class _RunRecord:
 
 
 def loop_experiment(base: Config) -> Experiment:
-    """What the loop benches run: the impact experiment, on the humanoid standing."""
-    return STAND if robot_of(base) == "dyros-jet" else IMPACT
+    """What the loop benches run: the robot's bench experiment (the testbed's impact, the
+    humanoid standing)."""
+    return profile_of(base).bench_experiment
 
 
 def _run_impact(base: Config, ticks: int, realtime: bool, out_dir: Path) -> _RunRecord:
@@ -250,9 +253,8 @@ def run_bench_loop(
     # the wire budget of the configuration as given (the bench widens only its own timeout)
     budget = tick_budget(bus_config(config, Connection.from_config(config)), config.loop.period_s)
     config = with_bench_reply_timeout(config)
-    sizes = (
-        "the robot's joints" if robot_of(config) == "dyros-jet" else f"{len(joint_counts)} sizes"
-    )
+    own_joints = robot_model(config).rescheduled  # (bench_controllers: its own joints)
+    sizes = "the robot's joints" if own_joints else f"{len(joint_counts)} sizes"
     say(f"bench loop: {len(CONTROLLER_NAMES)} controllers x {sizes}, {ticks} ticks interleaved ...")
     controllers = bench_controllers(config, ticks, joint_counts=joint_counts)
     schedule = bench_gain_schedule(config)

@@ -1,4 +1,4 @@
-"""The humanoid's LQR rescheduling cost (off the 200 Hz path), before and after, side by side.
+"""A rescheduled robot's LQR rescheduling cost (off the 200 Hz path), before and after.
 
 What one reschedule costs: Sm of (19) at a posture (pinocchio), then the gain on it. The gain
 is timed in two ways, taken in turn on every posture (A B A B ..., so a burst of machine load
@@ -31,9 +31,8 @@ from controller import ControllerKind, Coupling, TrackingGain, design_discrete_t
 from controller.model import validate_sm
 from drivers.timing import DurationStats as Distribution
 from hil.config import Config
-from hil.controllers.robot_model import HumanoidLegs
-from hil.experiments import STAND
 from hil.loop import build_controller, robot_model
+from hil.robots import profile_of
 from hil.vocabulary import ControllerChoice
 
 POSTURE_STEP_RAD = 0.001
@@ -43,11 +42,12 @@ def bench_gain_schedule(base: Config, designs: int = 20) -> dict[str, Any] | Non
     """The humanoid's rescheduling cost (module docstring); None for a robot whose Sm is
     constant."""
     robot = robot_model(base)
-    if not isinstance(robot, HumanoidLegs):
+    if not robot.rescheduled:
         return None
+    bench = profile_of(base).bench_experiment
     period_s = base.loop.period_s
-    posture = np.asarray(STAND.reference(0.0))
-    contact = robot.lqr_contacts([STAND.support(0.0)])[0]
+    posture = np.broadcast_to(bench.reference(0.0), (len(base.joints),))
+    contact = robot.lqr_contacts([bench.support(0.0)])[0]
     choice = ControllerChoice(ControllerKind.GC_LQR, base.controller.kdist)
     params = build_controller(base, choice, period_s, robot, posture, contact).params  # type: ignore[attr-defined]
     designer = params.gain_designer(period_s)

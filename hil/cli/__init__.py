@@ -96,8 +96,9 @@ def _main(argv: list[str] | None) -> int:
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "config":
         from hil.config import default_config_text
+        from hil.vocabulary import Robot
 
-        sys.stdout.write(default_config_text(args.robot or "testbed"))
+        sys.stdout.write(default_config_text(args.robot or Robot.TESTBED))
         return ExitCode.OK
     if args.command == "model":
         from hil.cli.model import cmd_model

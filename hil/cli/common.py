@@ -9,8 +9,9 @@ from pathlib import Path
 from typing import Any
 
 from hil.config import Config, ConfigError, load_config, robot_of
-from hil.experiments import robot_of_experiment
+from hil.robots import robot_of_experiment
 from hil.session import ConnectionOverrides
+from hil.vocabulary import Robot
 from hil.wiring import check_devices
 from sim_backend.scenario import EMULATOR_FAULTS, FaultEvent, parse_fault
 
@@ -28,13 +29,11 @@ def checked_config(
             "robot ([model] robot): give one of them"
         )
     wanted = robot_of_experiment(experiment) if experiment else None
-    config = (
-        load_config(path) if path is not None else load_config(robot=robot or wanted or "testbed")
-    )
-    if wanted is not None and robot_of(config) != wanted:
+    config = load_config(path, robot=robot or wanted or Robot.TESTBED)
+    if wanted is not None and robot_of(config) is not wanted:
         raise ConfigError(
-            f"experiment {experiment!r} is for the robot {wanted!r}; {config.source} describes "
-            f"{robot_of(config)!r} ([model] robot = {config.model.robot!r})"
+            f"experiment {experiment!r} is for the robot {str(wanted)!r}; {config.source} "
+            f"describes {str(robot_of(config))!r} ([model] robot)"
             + (f": drop --robot or use --robot {wanted}" if path is None else "")
         )
     check_devices(config)

@@ -13,10 +13,11 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from hil.config import Config, ConfigError, robot_of
+from hil.config import Config, ConfigError
 from hil.controllers.robot_model import RobotModel
 from hil.experiments import Experiment
 from hil.loop import build_controller, robot_model
+from hil.robots import profile_of
 from hil.vocabulary import ControllerChoice
 
 # What a design is made of, by controller part (named in the error).
@@ -32,15 +33,8 @@ _DOB_KEYS = (
 
 
 def comparison_runs(config: Config, named: str | None) -> list[tuple[Experiment, ControllerChoice]]:
-    """The runs `hil run` without an experiment makes (hil.session.comparison's plans)."""
-    from hil.session.comparison import comparison_plan, humanoid_plan, walking_plan
-
-    kdist = config.controller.kdist
-    if named == "walking":
-        return walking_plan(kdist)
-    if robot_of(config) == "dyros-jet":
-        return humanoid_plan(kdist)
-    return comparison_plan(config.controller.composition)
+    """The runs `hil run` without an experiment makes (the robot's comparison's plan)."""
+    return profile_of(config).comparison(named).plan(config, True)
 
 
 def check_designs(

@@ -9,7 +9,7 @@ from pathlib import Path
 from hil.cli.common import checked_config, parse_injections
 from hil.cli.exit_codes import ExitCode
 from hil.config import ConfigError
-from hil.experiments import get_experiment
+from hil.robots import get_experiment
 from hil.vocabulary import EmulatorClock
 from hil.wiring.emulation import emulator_spec, spec_from_json
 

@@ -8,9 +8,7 @@ from pathlib import Path
 import hil
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES, GC_COMPLIANCES
 from hil.cli.views import add_view_commands
-from hil.config import BUILT_IN_CONFIGS
-from hil.experiments import EXPERIMENTS
-from hil.session.comparison import NAMED_COMPARISONS
+from hil.robots import EXPERIMENTS, NAMED_COMPARISONS, PROFILES
 
 BENCH_TARGETS = ("bus", "loop", "pacing", "soak", "log", "sweep")
 
@@ -40,10 +38,12 @@ def _add_connection_overrides(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_robot(parser: argparse.ArgumentParser) -> None:
+    robots = "; ".join(f"{robot}: {each.summary}" for robot, each in PROFILES.items())
     parser.add_argument(
         "--robot",
-        choices=sorted(BUILT_IN_CONFIGS),
-        help="the built-in configuration (default: the experiment's robot; testbed otherwise)",
+        choices=sorted(str(robot) for robot in PROFILES),
+        help="the robot whose built-in configuration to use (default: the experiment's robot; "
+        f"testbed otherwise). {robots}",
     )
 
 
@@ -60,8 +60,11 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         metavar="EXPERIMENT",
         help="the experiment to run: one of "
         + ", ".join(sorted([*EXPERIMENTS, *NAMED_COMPARISONS]))
-        + ", or your own as path/to/file.py:Name (hil/experiments/base.py); omit for the full "
-        "comparison; `walking`: the walking comparison on DYROS-JET",
+        + ", or your own as path/to/file.py:Name (hil/experiments/base.py); omit for the "
+        "robot's comparison; "
+        + "; ".join(
+            f"`{name}`: a comparison on {robot}" for name, robot in NAMED_COMPARISONS.items()
+        ),
     )
     run.add_argument(
         "--controller",

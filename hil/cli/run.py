@@ -17,13 +17,13 @@ from hil.cli.exit_codes import ExitCode
 from hil.config import Config, ConfigError, robot_of
 from hil.controllers import ControllerLoadError
 from hil.controllers.choice import choose
-from hil.experiments import Experiment, get_experiment
+from hil.experiments import Experiment
 from hil.loop import StopFlag, duration_problem
 from hil.output.channels import MessageSink
 from hil.output.rundir import describe_bytes, estimated_record_bytes
+from hil.robots import NAMED_COMPARISONS, get_experiment
 from hil.safety import ReferenceOutsideLimits
 from hil.session import Session, SessionError, Setup, run_comparison
-from hil.session.comparison import NAMED_COMPARISONS
 from hil.vocabulary import ControllerChoice, ControllerKind
 
 _SINGLE_RUN_OPTIONS = (
@@ -261,8 +261,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise ConfigError(f"hil run: {exc}") from None
     config = _configured(args)
-    if named is not None and robot_of(config) != NAMED_COMPARISONS[named]:
-        raise ConfigError(f"`hil run {named}` is for the robot {NAMED_COMPARISONS[named]!r}")
+    if named is not None and robot_of(config) is not NAMED_COMPARISONS[named]:
+        raise ConfigError(f"`hil run {named}` is for the robot {str(NAMED_COMPARISONS[named])!r}")
     faults, overruns = parse_injections(args.inject)
     embedded = (args.config is None or args.emulate) and not (args.attach and args.config is None)
     _check_combinations(args, embedded, faults)

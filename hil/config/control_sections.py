@@ -5,7 +5,7 @@ ranges (hil.config.figures), no unknown keys)."""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
@@ -22,6 +22,7 @@ from controller import (
 )
 from controller.walking import CenterOfMassMeasurement
 from hil.config.figures import (
+    Angle,
     Damping,
     GravityMoment,
     IntegralTime,
@@ -36,7 +37,9 @@ from hil.config.figures import (
     ViscousFriction,
 )
 from hil.config.section import Section
-from hil.vocabulary import ControllerKind
+from hil.vocabulary import ControllerKind, Robot
+
+ToolPoint = Annotated[float, Field(ge=-2.0, le=2.0)]
 
 
 class JointModelSection(Section):
@@ -56,9 +59,11 @@ class JointModelSection(Section):
 class ModelSection(Section):
     """The controller's (nominal) model of the robot: Kim et al. Sec. IV-A.
 
-    robot "single_link": every joint drives its own link swinging in a vertical plane
-    (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity torque m g r cos(angle).
-    robot "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
+    `robot`, one of hil.vocabulary.Robot (its folder hil/robots/<name>/ says what its model is):
+    "testbed" (the old name "single_link" reads as it): every joint drives its own link
+    swinging in a vertical plane (the 1-DoF testbed): Sm = 1 / link_inertia_kg_m2, gravity
+    torque m g r cos(angle).
+    "dyros-jet": the humanoid's 12 leg joints, the whole robot from `description` (a URDF:
     a path, or the name of one shipped in hil/data/robots/): the gravity compensator (5)-(8)
     and the contact-projected Sm of (19), the LQR rescheduled every `gain_reschedule_period_s`
     off the 200 Hz path; `sm_coupling` "diagonal" (the lab's: one design per joint on Sm's
@@ -74,6 +79,14 @@ class ModelSection(Section):
     velocity_gain_nms_per_rad on the rotor's reflected inertia rotor_inertia_kg_m2, with
     motor_viscous_friction_nms_per_rad: controller/servo_cascade.py; needs [controller]
     discretization "zoh" or "continuous-cost").
+    "fixed-base" (your own robot; hil/robots/fixed_base/) and "manipulator-h": a fixed-base
+    robot of flexible joints from `description` (its URDF): tau_g of (5)-(8) is the joints'
+    generalised gravity and Sm of (19) is M(theta)^-1 (pinocchio, every [[joint]] one of the
+    URDF's joints, in any order; the URDF's other movable joints welded at
+    `locked_joint_angles_rad`, 0 where not named), both posture-dependent (the LQR
+    rescheduled as the humanoid's; `sm_coupling` "diagonal" or "full"). `tool_link` and
+    `tool_point_m` (in that link's frame) name the tool the experiments push at and touch the
+    block with.
     Gear and servo figures apply to every joint unless `[model.joint.NAME]` overrides them.
 
     The position servo's cascade, as `hil identify` fits it (same keys and units, so that its
@@ -88,7 +101,7 @@ class ModelSection(Section):
     Each figure's range, and why it ends where it does, is in hil/config/figures.py.
     """
 
-    robot: Literal["single_link", "dyros-jet"] = "single_link"
+    robot: Robot = Field(Robot.TESTBED, strict=False)
     description: str | None = None
     sm_coupling: Coupling = Field(Coupling.DIAGONAL, strict=False)
     # the lab's background thread: 100 ms; from a tick at 200 Hz to 1 s (a step's time: a gain
@@ -107,6 +120,10 @@ class ModelSection(Section):
     motor_viscous_friction_nms_per_rad: ViscousFriction = 1.14  # its gearbox, viscous part
     link_inertia_kg_m2: LinkInertia = 0.376
     gravity_moment_kg_m: GravityMoment = 0.63
+    locked_joint_angles_rad: dict[str, Angle] = Field(default_factory=dict)
+    tool_link: str | None = Field(None, min_length=1)
+    # a point of the tool link: within 2 m of its frame (farther is no tool an arm carries)
+    tool_point_m: tuple[ToolPoint, ToolPoint, ToolPoint] = Field((0.0, 0.0, 0.0), strict=False)
     joint: dict[str, JointModelSection] = Field(default_factory=dict)
 
     def joint_figure(self, joint: str, key: str) -> float:

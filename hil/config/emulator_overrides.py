@@ -1,6 +1,7 @@
 """The ranges of the emulated robot's figures that `[emulator] plant / servo / sensor_noise`
 may override (the emulator's classes: sim_backend.plant.TestbedPlantParams,
-sim_backend.humanoid.params.RobotTruthParams, sim_backend.servo.H54ServoParams,
+sim_backend.humanoid.params.RobotTruthParams, sim_backend.fixed_base.params.
+FixedBaseTruthParams, sim_backend.servo.H54ServoParams,
 sim_backend.spec.SensorNoise), judged when the configuration is read.
 
 The truth may differ from the controller's [model] on purpose (robustness runs, sweeps): its
@@ -67,6 +68,9 @@ PLANT: Mapping[str, Range] = {
     "contact.time_constant_s": (2.0e-3, 1.0, "MuJoCo's solref: twice the 1 ms step at least"),
     "contact.damping_ratio": (0.1, 10.0, "MuJoCo's solref damping ratio"),
     "contact.friction_impedance_ratio": (1.0, 1.0e4, "MuJoCo's impratio (>= 1)"),
+    # a fixed-base robot's truth (and mass_scale, com_offset_m above)
+    "block_time_constant_s": (2.0e-3, 1.0, "MuJoCo's solref: twice the 1 ms step at least"),
+    "block_damping_ratio": (0.1, 10.0, "MuJoCo's solref damping ratio"),
 }
 SERVO: Mapping[str, Range] = {
     "position_gain_per_s": _of(ServoGain),

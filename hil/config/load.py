@@ -20,10 +20,17 @@ from pydantic import PrivateAttr, ValidationError
 
 from hil.config.ranges import figure_range
 from hil.config.schema import ConfigFile
+from hil.vocabulary import Robot
 
-DEFAULT_CONFIG_NAME = "testbed.toml"
+
+def builtin_config_name(robot: Robot) -> str:
+    """The file of a robot's built-in configuration in hil/data: its name with _ for -."""
+    return f"{robot.value.replace('-', '_')}.toml"
+
+
+DEFAULT_CONFIG_NAME = builtin_config_name(Robot.TESTBED)
 # The configurations shipped with hil, by robot (`hil config --robot NAME` prints them).
-BUILT_IN_CONFIGS = {"testbed": DEFAULT_CONFIG_NAME, "dyros-jet": "dyros_jet.toml"}
+BUILT_IN_CONFIGS = {str(robot): builtin_config_name(robot) for robot in Robot}
 
 
 class ConfigError(ValueError):
@@ -74,27 +81,31 @@ class Config(ConfigFile):
         return {"source": self.source, **self.model_dump(mode="json", by_alias=True)}
 
 
-def default_config_text(robot: str = "testbed") -> str:
-    """The configuration shipped for `robot` (see BUILT_IN_CONFIGS)."""
+def _robot(robot: Robot | str) -> Robot:
     try:
-        name = BUILT_IN_CONFIGS[robot]
-    except KeyError:
+        return Robot(robot)
+    except ValueError:
         raise ConfigError(
             f"no built-in configuration for robot {robot!r}: {sorted(BUILT_IN_CONFIGS)}"
         ) from None
+
+
+def default_config_text(robot: Robot | str = Robot.TESTBED) -> str:
+    """The configuration shipped for `robot` (see BUILT_IN_CONFIGS)."""
+    name = builtin_config_name(_robot(robot))
     return resources.files("hil").joinpath("data", name).read_text()
 
 
-def robot_of(config: Config) -> str:
-    """The built-in configuration's robot name this configuration's model is ("testbed" for
-    single links): what an experiment is checked against."""
-    return "dyros-jet" if config.model.robot == "dyros-jet" else "testbed"
+def robot_of(config: Config) -> Robot:
+    """The robot this configuration describes (`[model] robot`): what an experiment is
+    checked against."""
+    return config.model.robot
 
 
-def load_config(path: str | Path | None = None, *, robot: str = "testbed") -> Config:
+def load_config(path: str | Path | None = None, *, robot: Robot | str = Robot.TESTBED) -> Config:
     """Read and check a configuration file; None reads the built-in one of `robot`."""
     if path is None:
-        name = BUILT_IN_CONFIGS.get(robot, DEFAULT_CONFIG_NAME)
+        name = builtin_config_name(_robot(robot))
         return parse_config(default_config_text(robot), source=f"<built-in {name}>")
     path = Path(path)
     return parse_config(read_text_file(path, "configuration file"), source=str(path))

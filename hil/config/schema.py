@@ -126,7 +126,10 @@ class JointSection(Section):
     # its actuator's model, an e-Manual name ("H54-100-S500-R", "H42-20-S300-R(A)", docs/
     # actuators.md); None: its chain's `model`. The driver checks it (and PING) at open.
     actuator: str | None = Field(None, min_length=1)
-    encoder_node_id: int
+    # its link encoder's CANopen node; 0: the joint has none (a stock arm: the motor angle
+    # through the gear stands for the link's, and controllers that need the link angle, the
+    # LQR's, are refused)
+    encoder_node_id: int  # the drivers judge it (a CANopen node ID, 1-127)
     can: str | None = None  # the CAN channel of its encoder (None: the only one)
     # None: the driver's RLC2IC figure. From 4096 (1.5 mrad a count, half the testbed's static
     # deflection m g r / K = 3.1 mrad: coarser cannot see the deflection the controller acts on)
@@ -359,13 +362,15 @@ class ConfigFile(Section):
         _unique("[[force_torque_sensor]] name", [f.name for f in self.force_torque_sensors])
         for sensor in self.force_torque_sensors:
             _refers(f"[[force_torque_sensor]] {sensor.name!r} can", sensor.can, channels)
-        if self.model.robot == "dyros-jet" and self.model.description is None:
-            raise ValueError("[model] description: the robot 'dyros-jet' needs its URDF")
         for chain in chains:
             ids = [j.dynamixel_id for j in self.joints if self.chain_of(j) == chain]
             _unique(f"dynamixel_id on chain {chain!r}", ids)
         for channel in channels:
-            nodes = [j.encoder_node_id for j in self.joints if self.channel_of(j) == channel]
+            nodes = [
+                j.encoder_node_id
+                for j in self.joints
+                if self.channel_of(j) == channel and j.encoder_node_id
+            ]
             if self.force_sensor.node_id and self.force_sensor_channel == channel:
                 nodes.append(self.force_sensor.node_id)
             nodes += [f.node_id for f in self.force_torque_sensors if self.channel_of(f) == channel]
@@ -384,6 +389,11 @@ class ConfigFile(Section):
 
     def chain_of(self, joint: JointSection) -> str:
         return joint.dynamixel or self.dynamixel[0].name
+
+    @property
+    def joints_without_link_encoder(self) -> tuple[str, ...]:
+        """The joints with `encoder_node_id = 0` (their motor angle stands for the link's)."""
+        return tuple(j.name for j in self.joints if not j.encoder_node_id)
 
     def actuator_of(self, joint: JointSection) -> str:
         """The joint's actuator model: its own `actuator`, else its chain's `model`."""

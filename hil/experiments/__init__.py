@@ -11,10 +11,11 @@
     walk-dynamic  the same at 0.8 s / 0.3 s (Fig. 7(b))
     step-on-object  the dynamic walk over a box the plan does not know (Fig. 8)
 
-`EXPERIMENTS` maps names to experiments; `get_experiment(name)` gives a clear error for a
-name that does not exist, and loads a plug-in experiment ("path/to/file.py:Name" or
-"package.module:Name": an `Experiment` instance, or a subclass made with no arguments; its
-`robot` attribute names the built-in robot it is for, "testbed" by default).
+Each robot's profile (hil/robots/<name>/) lists the experiments that run on it; the registry,
+`hil.robots.EXPERIMENTS` and `hil.robots.get_experiment(name)`, is where `hil run NAME` looks
+a name up, and loads a plug-in experiment (`plugin_experiment`: "path/to/file.py:Name" or
+"package.module:Name", an `Experiment` instance or a subclass made with no arguments; its
+`robot` attribute names the robot it is for, hil.vocabulary.Robot, the testbed by default).
 """
 
 import inspect
@@ -27,46 +28,10 @@ from hil.experiments.impact import IMPACT, IMPACT_LONG
 from hil.experiments.walking import STEP_ON_OBJECT, WALK_DYNAMIC, WALK_SLOW
 from hil.plugins import PluginError, class_from_target, target_of
 
-EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e
-    for e in (
-        CONTACT,
-        IMPACT,
-        CONTACT_LONG,
-        IMPACT_LONG,
-        IDENTIFY,
-        STAND,
-        PUSH,
-        WALK_SLOW,
-        WALK_DYNAMIC,
-        STEP_ON_OBJECT,
-    )
-}
-# Which robot each experiment is for (`hil run NAME` picks the robot's built-in configuration).
-ROBOT_OF_EXPERIMENT: dict[str, str] = {
-    name: "dyros-jet" for name in ("stand", "push", "walk-slow", "walk-dynamic", "step-on-object")
-}
 
-
-def robot_of_experiment(name: str | None) -> str:
-    """The built-in robot an experiment runs on ("testbed" for the paper's 1-DoF testbed and
-    for the comparison, name None)."""
-    if not name:
-        return "testbed"
-    if name in ROBOT_OF_EXPERIMENT or name in EXPERIMENTS:
-        return ROBOT_OF_EXPERIMENT.get(name, "testbed")
-    return str(getattr(get_experiment(name), "robot", "testbed"))
-
-
-def get_experiment(name: str) -> Experiment:
-    """A built-in experiment by its name, or a plug-in by where it is (module docstring)."""
-    if name in EXPERIMENTS:
-        return EXPERIMENTS[name]
-    if ":" not in name:
-        raise ValueError(
-            f"unknown experiment {name!r}; choose one of {sorted(EXPERIMENTS)}, or your own as "
-            "path/to/file.py:Name or package.module:Name"
-        )
+def plugin_experiment(name: str) -> Experiment:
+    """A plug-in experiment by where it is ("path/to/file.py:Name" or "package.module:Name"):
+    an `Experiment` instance, or a subclass made with no arguments. ValueError saying why not."""
     try:
         found = class_from_target(target_of(name), name)
     except PluginError as exc:
@@ -92,12 +57,10 @@ def get_experiment(name: str) -> Experiment:
 __all__ = [
     "CONTACT",
     "CONTACT_LONG",
-    "EXPERIMENTS",
     "IDENTIFY",
     "IMPACT",
     "IMPACT_LONG",
     "PUSH",
-    "ROBOT_OF_EXPERIMENT",
     "STAND",
     "STEP_ON_OBJECT",
     "WALK_DYNAMIC",
@@ -109,6 +72,5 @@ __all__ = [
     "Ramp",
     "TestbedExperiment",
     "World",
-    "get_experiment",
-    "robot_of_experiment",
+    "plugin_experiment",
 ]

@@ -26,7 +26,8 @@ An experiment module (contact.py, impact.py, ...) defines one `Experiment`:
     marks           what its plots mark (the obstacle, the pushes, the first contact)
     comparison      its figure across controllers, the paper's claims it checks (`relations`)
                     and the metrics columns of the report table
-Adding an experiment is one new module plus a line in `hil/experiments/__init__.py`.
+Adding an experiment is one new module plus a line in its robot's profile
+(hil/robots/<name>/__init__.py `experiments`).
 """
 
 from __future__ import annotations
@@ -111,6 +112,25 @@ class FloorObject:
 
 
 @dataclass(frozen=True)
+class ToolPush:
+    """A push at a fixed-base robot's tool ([model] tool_link, tool_point_m): a constant force
+    [N] (world frame: the URDF's root frame) for a while."""
+
+    start_s: float
+    duration_s: float
+    force_n: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Block:
+    """A rigid box fixed in the world (the URDF's root frame) that a fixed-base robot's tool may
+    touch, on a force sensor (`[force_sensor]`): its centre and full size [m], axis-aligned."""
+
+    centre_m: tuple[float, float, float]
+    size_m: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
 class World:
     """What the world does during the experiment (experiment time, from its start)."""
 
@@ -118,6 +138,8 @@ class World:
     obstacle: Obstacle | None = None
     pelvis_pushes: tuple[PelvisPush, ...] = ()
     floor_objects: tuple[FloorObject, ...] = ()
+    tool_pushes: tuple[ToolPush, ...] = ()
+    block: Block | None = None
 
 
 class ReferenceFeedback(abc.ABC):

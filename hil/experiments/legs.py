@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from drivers.joint_bus import JointSample, wrench_keys
-from hil.vocabulary import Reaction, ReactionPolicy, RestCondition
+from hil.vocabulary import Reaction, ReactionPolicy, RestCondition, Robot
 
 FEET = ("left_foot", "right_foot")  # the feet's force/torque sensors ([[force_torque_sensor]])
 GRAVITY_M_S2 = 9.81
@@ -86,7 +86,7 @@ def leg_model() -> Any:
     from controller.humanoid import LegModel
     from hil.config import load_config, robot_description_text
 
-    return LegModel(robot_description_text(load_config(robot="dyros-jet")))
+    return LegModel(robot_description_text(load_config(robot=Robot.DYROS_JET)))
 
 
 def support_state(support: Any) -> Any:

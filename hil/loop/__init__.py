@@ -16,7 +16,7 @@ runner.py              one experiment's run on the spine (`Loop`, `run_experimen
 """
 
 from hil.controllers.paper_factory import build_controller, joint_params
-from hil.controllers.robot_model import HumanoidLegs, RobotModel, SingleLinks, robot_model
+from hil.controllers.robot_model import RobotModel, robot_model
 from hil.loop.clock import LockstepClock, LoopClock, Tick, WallClock
 from hil.loop.homing import HomingPlan, plan_homing
 from hil.loop.request import MAX_RUN_DURATION_S, RunRequest, StopFlag, duration_problem
@@ -28,14 +28,12 @@ __all__ = [
     "LOST_BUS_ERRORS",
     "MAX_RUN_DURATION_S",
     "HomingPlan",
-    "HumanoidLegs",
     "LockstepClock",
     "Loop",
     "LoopClock",
     "Phase",
     "RobotModel",
     "RunRequest",
-    "SingleLinks",
     "StartRefused",
     "StopFlag",
     "Tick",

@@ -1,17 +1,17 @@
 """Which robot a run drove, as viewers see it: its URDF (with shapes to draw), its joints, its
 force sensors and the frames they measure in (the ROS 2 bag, run.mcap's 3D view, `hil render`).
 
-A run's robot comes from its meta.json (`[model] robot` of the configuration it ran):
+A run's robot comes from its meta.json (the configuration it ran):
 
-    dyros-jet    the configuration's [model] description (hil/data/robots/dyros_jet.urdf by
-                 default): a floating base and 28 joints, the 12 leg joints the run logs. Its
-                 published URDF has no visual geometry (the meshes are not part of this
-                 product), so viewers get `with_skeleton_visuals`: a cylinder from each link's
+    a [model] description   that URDF (DYROS-JET's: hil/data/robots/dyros_jet.urdf, a floating
+                 base and 28 joints, the 12 leg joints the run logs; a fixed-base robot's: its
+                 own). A published URDF without visual geometry (the meshes are not part of
+                 this product) gets `with_skeleton_visuals`: a cylinder from each link's
                  origin to each of its child joints, a sphere at each joint, the soles as boxes.
-    single_link  one joint: hil/data/robots/testbed.urdf (the paper's testbed), its joint named
-                 as the run's; several single-link joints have no URDF (frames are left out).
-    another      its [model] description, fixed base, with the same drawn shapes; none
-                 without one (frames are left out).
+                 Its base floats when its root joint is a floating one.
+    none, one joint         hil/data/robots/testbed.urdf (the paper's testbed), its joint named
+                 as the run's; several joints without a description have no URDF (frames are
+                 left out).
 
 Force sensors: a foot's six columns `<name>_fx_n ... <name>_mz_nm` (the ground's wrench on the
 robot in the foot sensor's frame, *_AnkleRoll_Link at the ankle axis: hil/config's
@@ -27,7 +27,6 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
-from enum import StrEnum
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -37,8 +36,6 @@ import numpy as np
 from drivers.joint_bus import wrench_keys
 
 TESTBED_URDF = "testbed.urdf"
-HUMANOID_URDF = "dyros_jet.urdf"
-TESTBED_JOINT = "testbed"  # the joint's name in testbed.urdf
 CONTACT_FORCE_COLUMN = "contact_force_n"
 CONTACT_FORCE_FRAME = "load"
 FOOT_FRAMES = {"left_foot": "L_AnkleRoll_Link", "right_foot": "R_AnkleRoll_Link"}
@@ -46,15 +43,6 @@ _SKELETON_RADIUS_M = 0.025
 _JOINT_SPHERE_RADIUS_M = 0.035
 _SKELETON_RGBA = "0.30 0.45 0.70 1"
 _SOLE_RGBA = "0.15 0.15 0.15 1"
-
-
-class RobotKind(StrEnum):
-    """The robots viewers know ([model] robot); OTHER: another robot, drawn from its [model]
-    description (a URDF, fixed base) when it has one."""
-
-    TESTBED = "single_link"
-    DYROS_JET = "dyros-jet"
-    OTHER = "other"
 
 
 @dataclass(frozen=True)
@@ -72,7 +60,6 @@ class ForceSensor:
 class RunRobot:
     """A run's robot for viewers: `urdf` None when there is no description of it."""
 
-    kind: RobotKind
     joint_names: tuple[str, ...]
     urdf: str | None  # the description the controller's model reads (kinematics)
     viewer_urdf: str | None  # the same with shapes to draw (published)
@@ -86,21 +73,31 @@ def robot_of_run(
 ) -> RunRobot:
     """The robot of a run from its meta.json, joint names and log sensor columns."""
     model = (meta.get("config") or {}).get("model") or {}
-    named = str(model.get("robot") or RobotKind.TESTBED)
-    kind = RobotKind(named) if named in set(RobotKind) else RobotKind.OTHER
     names = tuple(joint_names)
     sensors = force_sensors(sensor_columns)
     stiffness = _gear_stiffness(model, names)
-    if kind is RobotKind.DYROS_JET:
-        urdf = shipped_or_file(model.get("description") or HUMANOID_URDF)
-        return RunRobot(kind, names, urdf, with_skeleton_visuals(urdf), True, sensors, stiffness)
-    if kind is RobotKind.OTHER and model.get("description"):
+    if model.get("description"):
         urdf = shipped_or_file(str(model["description"]))
-        return RunRobot(kind, names, urdf, with_skeleton_visuals(urdf), False, sensors, stiffness)
-    if kind is RobotKind.OTHER or len(names) != 1:
-        return RunRobot(kind, names, None, None, False, sensors, stiffness)
-    urdf = _shipped(TESTBED_URDF).replace(f'name="{TESTBED_JOINT}"', f'name="{names[0]}"')
-    return RunRobot(kind, names, urdf, urdf, False, sensors, stiffness)
+        floating = _has_floating_root(urdf)
+        return RunRobot(names, urdf, with_skeleton_visuals(urdf), floating, sensors, stiffness)
+    if len(names) != 1:
+        return RunRobot(names, None, None, False, sensors, stiffness)
+    urdf = _with_joint_named(_shipped(TESTBED_URDF), names[0])
+    return RunRobot(names, urdf, urdf, False, sensors, stiffness)
+
+
+def _with_joint_named(urdf: str, name: str) -> str:
+    """A one-joint URDF with its movable joint renamed (the run's own joint name)."""
+    movable = [
+        j.get("name") for j in ET.fromstring(urdf).findall("joint") if j.get("type") != "fixed"
+    ]
+    assert len(movable) == 1, "the testbed's URDF has one movable joint"
+    return urdf.replace(f'name="{movable[0]}"', f'name="{name}"')
+
+
+def _has_floating_root(urdf: str) -> bool:
+    """The URDF hangs from a floating joint (a legged robot's base), not from the world."""
+    return any(joint.get("type") == "floating" for joint in ET.fromstring(urdf).findall("joint"))
 
 
 def _gear_stiffness(model: dict[str, Any], joint_names: tuple[str, ...]) -> np.ndarray:

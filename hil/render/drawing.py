@@ -58,7 +58,7 @@ def default_instants(run: RunData) -> tuple[float, ...]:
 
 def _object_step_lift_off_s(run: RunData) -> float | None:
     """Run time at which the foot that steps onto the box leaves the floor (the plan's)."""
-    from hil.experiments import get_experiment
+    from hil.robots import get_experiment
 
     experiment: Any = get_experiment(STEP_ON_OBJECT)
     timeline = experiment.pattern.timeline

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hil.output.robot_description import RobotKind, RunRobot, robot_of_run
+from hil.output.robot_description import RunRobot, robot_of_run
 from hil.output.robot_frames import BaseTruth, RobotFrames, robot_frames
 from hil.output.run_samples import run_joint_names, sensor_columns
 from hil.output.rundir import RunData
@@ -56,7 +56,7 @@ class RunScene:
         self.robot: RunRobot = robot_of_run(run.meta, run_joint_names(run), sensor_columns(run))
         if self.robot.viewer_urdf is None:
             raise ValueError(f"{run.out_dir}: no robot description to draw this run's robot")
-        self.humanoid = self.robot.kind is RobotKind.DYROS_JET
+        self.humanoid = self.robot.floating_base
         floor_z = 0.0 if self.humanoid else TESTBED_FLOOR_Z_M
         spec = mujoco.MjSpec.from_string(_staged(self._mjcf(world), floor_z))
         _add_viewer_shapes(spec, self.robot.viewer_urdf, mujoco)
@@ -75,10 +75,10 @@ class RunScene:
 
     def _mjcf(self, world: WorldObjects) -> str:
         if self.humanoid:
-            from sim_backend.humanoid.description import parse_urdf
             from sim_backend.humanoid.mjcf import build_mjcf
             from sim_backend.humanoid.params import RobotTruthParams
             from sim_backend.spec import FloorBox
+            from sim_backend.urdf_description import parse_urdf
 
             boxes = [FloorBox(centre, size) for centre, size in world.boxes]
             assert self.robot.urdf is not None
@@ -234,7 +234,7 @@ def _staged(mjcf: str, floor_z_m: float) -> str:
 
 def world_objects_of(run: RunData) -> WorldObjects:
     """The world of the run's experiment (by its name in meta.json; none if unknown)."""
-    from hil.experiments import get_experiment
+    from hil.robots import get_experiment
 
     try:
         experiment = get_experiment(str(run.meta.get("experiment", "")))

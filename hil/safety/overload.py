@@ -13,6 +13,10 @@ The protection (what the actuator's firmware does, modelled as a timer):
                      `overload_trip_time_s`; tests/hil/test_guard_rule.py holds the two equal):
                      a load held near the current cap for about a thermal time constant of
                      the drive trips it. On hardware, measure it (docs/safety.md says how).
+    the other models of the family (docs/actuators.md)
+                     the H54-200-S500-R's fraction and time, as the emulated firmware carries
+                     them over (sim_backend/servo_models.py: ROBOTIS publish no threshold for
+                     any model): an ASSUMPTION.
 
 The guard's rule (`GuardRule`) is the same kind of timer: the guard's timer runs up while
 |I| >= its fraction of the current limit and down below it, and the guard fires at its time.
@@ -61,22 +65,33 @@ H54_200_S500_R = OverloadProtection(
     source="assumption (ROBOTIS publish no threshold), as sim_backend/servo.py emulates it",
 )
 PROTECTIONS = {p.model: p for p in (H54_200_S500_R,)}
+CARRIED_OVER = (
+    "assumption: the H54-200-S500-R's fraction and time (ROBOTIS publish no threshold for any "
+    "model), as sim_backend/servo_models.py emulates it"
+)
 
 
 def protection_of(model: str) -> OverloadProtection:
-    try:
+    """A model's protection: its own where one is modelled, else the H54-200-S500-R's carried
+    over to any other model of the family the driver knows (module docstring)."""
+    if model in PROTECTIONS:
         return PROTECTIONS[model]
-    except KeyError:
+    from drivers.dynamixel import model_number  # the family's names (ValueError otherwise)
+
+    try:
+        model_number(model)
+    except ValueError:
         raise ValueError(
-            f"no overload protection is modelled for actuator model {model!r} (known: "
-            f"{sorted(PROTECTIONS)}): add it to hil/safety/overload.py before guarding it"
+            f"no overload protection is modelled for actuator model {model!r}: it is not a "
+            "model of the DYNAMIXEL PRO family (docs/actuators.md)"
         ) from None
+    base = H54_200_S500_R
+    return OverloadProtection(model, base.fraction, base.trip_time_s, CARRIED_OVER)
 
 
 def protections_of(config: Config) -> tuple[OverloadProtection, ...]:
-    """Each joint's actuator model's protection (the model of its `[[dynamixel]]` chain)."""
-    models = {chain.name: chain.model for chain in config.dynamixel}
-    return tuple(protection_of(models[config.chain_of(joint)]) for joint in config.joints)
+    """Each joint's actuator model's protection (its `actuator`, else its chain's model)."""
+    return tuple(protection_of(config.actuator_of(joint)) for joint in config.joints)
 
 
 @dataclass(frozen=True)

@@ -32,12 +32,13 @@ from pathlib import Path
 from typing import Any
 
 from controller import COMPOSITION_READINGS
-from hil.experiments import EXPERIMENTS, Experiment
+from hil.experiments import Experiment
 from hil.output.overlay_plots import OverlayRun, overlay_figures
 from hil.output.plots import ComparisonRun, LineStyle, comparison_style
 from hil.output.report import markdown_table, metric_columns, plain_table
 from hil.output.run_data import NotARunDirectory, Run, load_run
 from hil.output.rundir import create_run_dir, timestamp
+from hil.robots import EXPERIMENTS
 from hil.vocabulary import ControllerChoice, ControllerKind, ControllerRef
 
 # meta.json's entries that say how two runs differ (beyond when and where they ran)

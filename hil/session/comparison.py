@@ -1,21 +1,9 @@
-"""The paper's testbed comparison: the experiments x the paper's controllers, then one report.
+"""A robot's comparison: its experiments x its controllers, then one report.
 
-The plan (`comparison_plan`):
-- contact (Fig. 5) and impact (Fig. 6): pid, gc, gc+lqr, and gc+lqr+dob with Kdist 0.5 and 1,
-  then the DOB once more (Kdist 1) with the other reading of the paper's (25), so the report
-  shows what the choice of reading does (the lab's accumulated total vs the literal
-  uc(tk - dt));
-- contact held 30 s (`contact-long`): the DOB (Kdist 1) in the configured reading and in the
-  bounded one ("accumulated-integral"; the lab's "accumulated" when the bounded one is the
-  configured reading, so no run is made twice): does the compliance last, or does the force
-  creep?
-- impact held a minute (`impact-long`): the DOB with Kdist 1 and 0.5, long enough to see the
-  equilibrium behind the paper's "steady-state error".
-On DYROS-JET (`--robot dyros-jet`): stand and push, each with pid, gc, gc+lqr and gc+lqr+dob
-(the configuration's Kdist: the lab's stance 0.2), Sec. IV-C.
-`hil run walking` (`walking_plan`): walk-slow, walk-dynamic and step-on-object, each with the
-same four controllers (Kdist by phase: the configuration's on the stance leg, 1.0 on the landing
-leg), Sec. IV-C, Figs. 7 and 8.
+Which runs, in which order, and the report's title are the robot's (its profile's
+`comparisons`, hil/robots/<name>/comparison.py): `hil run` runs the configured robot's own
+(the paper's testbed comparison, Figs. 5 and 6; DYROS-JET standing and pushed), `hil run NAME`
+a named one (`walking`: DYROS-JET's walks, Figs. 7 and 8).
 A run ending in a safety stop is a result of the comparison; one that did not run its course
 (interrupted, refused at its start, a lost bus, an error) makes the comparison incomplete, and
 Ctrl-C stops the whole plan.
@@ -32,22 +20,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from controller import CompositionReading
-from controller.gravity import GcCompliance
-from hil.config import ConfigError, robot_of
-from hil.experiments import (
-    CONTACT,
-    CONTACT_LONG,
-    EXPERIMENTS,
-    IMPACT,
-    IMPACT_LONG,
-    PUSH,
-    STAND,
-    STEP_ON_OBJECT,
-    WALK_DYNAMIC,
-    WALK_SLOW,
-    Experiment,
-)
+from hil.config import ConfigError
+from hil.experiments import Experiment
 from hil.loop import StopFlag
 from hil.output.plots import ComparisonRun
 from hil.output.progress import Progress
@@ -56,6 +30,7 @@ from hil.output.report import Report, ReportContent, write_report
 from hil.output.rundir import create_run_dir, load_run, timestamp
 from hil.output.strict_json import dumps
 from hil.render.report_strip import FIG8_RENDERED, rendered_fig8
+from hil.robots import EXPERIMENTS, Comparison, profile_of
 from hil.session.plan import (
     PlannedRun,
     incomplete_reason,
@@ -65,20 +40,8 @@ from hil.session.plan import (
 )
 from hil.session.session import Session, Setup
 from hil.session.workers import run_in_workers
-from hil.vocabulary import ControllerChoice, ControllerKind, Termination
+from hil.vocabulary import ControllerChoice, Termination
 from sim_backend.scenario import FaultEvent
-
-COMPARISON_CHOICES: tuple[ControllerChoice, ...] = (
-    ControllerChoice(ControllerKind.PID),
-    ControllerChoice(ControllerKind.GC),
-    ControllerChoice(ControllerKind.GC_LQR),
-    ControllerChoice(ControllerKind.GC_LQR_DOB, 0.5),
-    ControllerChoice(ControllerKind.GC_LQR_DOB, 1.0),
-)
-# Comparisons `hil run NAME` runs by name, and the robot each is for.
-NAMED_COMPARISONS: dict[str, str] = {"walking": "dyros-jet"}
-OTHER_READING_KDIST = 1.0
-BOUNDED_READING = CompositionReading.ACCUMULATED_INTEGRAL
 
 
 @dataclass(frozen=True)
@@ -88,55 +51,6 @@ class ComparisonOutcome:
     incomplete: str | None  # why the comparison is incomplete, None when every run ran its course
     # the runs whose exit path could not turn torque off (a lost bus)
     torque_not_off: tuple[str, ...] = ()
-
-
-def humanoid_choices(kdist: float) -> tuple[ControllerChoice, ...]:
-    """The four controllers, and GC once more with the other reading of (8): the paper's
-    literal K^-1 ("gear") beside the configuration's (the whole joint's, by default)."""
-    return (
-        ControllerChoice(ControllerKind.PID),
-        ControllerChoice(ControllerKind.GC),
-        ControllerChoice(ControllerKind.GC, gc_compliance=GcCompliance.GEAR),
-        ControllerChoice(ControllerKind.GC_LQR),
-        ControllerChoice(ControllerKind.GC_LQR_DOB, kdist),
-    )
-
-
-def humanoid_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
-    """DYROS-JET standing and pushed, with each of `humanoid_choices`."""
-    choices = humanoid_choices(kdist)
-    return [(experiment, choice) for experiment in (STAND, PUSH) for choice in choices]
-
-
-def walking_plan(kdist: float) -> list[tuple[Experiment, ControllerChoice]]:
-    """DYROS-JET walking slowly, dynamically and onto an object, with each of
-    `humanoid_choices`."""
-    choices = humanoid_choices(kdist)
-    return [
-        (experiment, choice)
-        for experiment in (WALK_SLOW, WALK_DYNAMIC, STEP_ON_OBJECT)
-        for choice in choices
-    ]
-
-
-def comparison_plan(
-    default_reading: str, *, long_runs: bool = True
-) -> list[tuple[Experiment, ControllerChoice]]:
-    """The runs of the testbed comparison, in order (see the module docstring)."""
-    accumulated = CompositionReading.ACCUMULATED
-    other = CompositionReading.LITERAL if default_reading == accumulated else accumulated
-    dob = ControllerKind.GC_LQR_DOB
-    choices = [*COMPARISON_CHOICES, ControllerChoice(dob, OTHER_READING_KDIST, other)]
-    plan = [(experiment, choice) for experiment in (CONTACT, IMPACT) for choice in choices]
-    if long_runs:
-        long_other = accumulated if default_reading == BOUNDED_READING else BOUNDED_READING
-        plan += [
-            (CONTACT_LONG, ControllerChoice(dob, 1.0)),
-            (CONTACT_LONG, ControllerChoice(dob, 1.0, long_other)),
-            (IMPACT_LONG, ControllerChoice(dob, 1.0)),
-            (IMPACT_LONG, ControllerChoice(dob, 0.5)),
-        ]
-    return plan
 
 
 def run_comparison(
@@ -157,19 +71,16 @@ def run_comparison(
     many runs at a time (`comparison_workers`).
     """
     base = session.config.changed("safety", current_guard=current_guard)
-    humanoid = robot_of(base) == "dyros-jet"
-    name = "humanoid-comparison" if humanoid else "comparison"
-    if named is not None:
-        name = f"{named}-comparison"
-    if named == "walking":
-        plan = walking_plan(base.controller.kdist)
-    elif humanoid:
-        plan = humanoid_plan(base.controller.kdist)
-    else:
-        plan = comparison_plan(base.controller.composition, long_runs=long_runs)
+    try:
+        comparison = profile_of(base).comparison(named)
+    except KeyError:
+        raise ConfigError(
+            f"`hil run {named}` is no comparison of the robot {base.model.robot!r}"
+        ) from None
+    plan = comparison.plan(base, long_runs)
     session.config = base
     workers = comparison_workers(session, workers, len(plan))  # refused before a directory
-    root = create_run_dir(session.out_root, f"{timestamp()}-{name}")
+    root = create_run_dir(session.out_root, f"{timestamp()}-{comparison.directory}")
     outcome = run_plan(
         session, plan, root, faults=faults, overruns=overruns, stop=stop, workers=workers
     )
@@ -178,9 +89,8 @@ def run_comparison(
         outcome.entries,
         session.description,
         outcome.wall_time_s,
-        humanoid=humanoid,
-        walking=named == "walking",
-        rendered=named == "walking" and session.plots,
+        comparison,
+        rendered=comparison.rendered and session.plots,
     )
     print(report.table_text)
     print(report.where)
@@ -299,9 +209,8 @@ def write_comparison_report(
     entries: Sequence[RunEntry],
     setup: str,
     wall_time_s: float,
+    comparison: Comparison,
     *,
-    humanoid: bool = False,
-    walking: bool = False,
     rendered: bool = False,
 ) -> Report:
     """The report of the comparison (figures, relations, tables) for these runs; rendered:
@@ -335,18 +244,9 @@ def write_comparison_report(
         drawn, missing = rendered_fig8(root, entries)
         figures += drawn
         problems += missing
-    title = (
-        "DYROS-JET standing and pushed: Kim et al., ICRA 2018, Sec. IV-C"
-        if humanoid
-        else "Testbed comparison: Kim et al., ICRA 2018, Figs. 5 and 6"
-    )
-    if walking:
-        title = "DYROS-JET walking: Kim et al., ICRA 2018, Sec. IV-C, Figs. 7 and 8"
     content = ReportContent(
-        title=title,
-        claims_source="Kim et al., ICRA 2018, Sec. III-A, IV-C"
-        if humanoid
-        else "Kim et al., ICRA 2018, Sec. IV-B",
+        title=comparison.title,
+        claims_source=comparison.claims_source,
         setup=setup,
         wall_time_s=wall_time_s,
         columns=tuple(columns),

@@ -27,7 +27,7 @@ from typing import Any
 
 from controller import CompositionReading
 from drivers.joint_bus import JointBus
-from hil.config import Config, robot_of
+from hil.config import Config
 from hil.experiments import Experiment
 from hil.loop import LockstepClock, LoopClock, RunRequest, StopFlag, WallClock, run_experiment
 from hil.output.channels import MessageSink
@@ -40,6 +40,7 @@ from hil.output.series import write_series
 from hil.output.strict_json import dumps
 from hil.output.versions import package_versions
 from hil.output.views import ROS2_BAG_KEY
+from hil.robots import profile_of
 from hil.vocabulary import ControllerChoice, EmulatorClock
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, EmulatorStartError, emulator_spec
@@ -101,11 +102,7 @@ class Session:
 
     @property
     def description(self) -> str:
-        emulated = (
-            "emulated DYROS-JET legs"
-            if robot_of(self.config) == "dyros-jet"
-            else ("emulated testbed")
-        )
+        emulated = profile_of(self.config).emulated
         gc = f"GC compliance: {self.config.controller.gc_compliance}"
         if self.setup is Setup.EMBEDDED:
             return f"{emulated}, " + ("real time" if self.realtime else "lock-step") + f"; {gc}"

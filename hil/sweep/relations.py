@@ -19,10 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hil.experiments import EXPERIMENTS
 from hil.experiments.impact import ImpactExperiment
 from hil.output.records import RunEntry, RunResult
 from hil.output.report import Relation, check, metric
+from hil.robots import EXPERIMENTS
 from hil.sweep.spec import parse_controller
 from hil.sweep.task import FAILED
 from hil.vocabulary import RunEnding, Termination

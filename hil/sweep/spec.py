@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from hil.config import ConfigError
-from hil.experiments import EXPERIMENTS
+from hil.robots import EXPERIMENTS
 from hil.sweep.ranges import SpecError, check_range, whole_number
 from hil.vocabulary import ControllerChoice, ControllerKind
 

@@ -18,8 +18,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from hil.experiments import EXPERIMENTS
 from hil.output.strict_json import dumps
+from hil.robots import EXPERIMENTS
 
 RESULTS_NAME = "results.csv"
 FIXED_HEAD = ("run_id", "point_id")

@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from hil.config import config_from_record
-from hil.experiments import get_experiment
 from hil.output.strict_json import plain
+from hil.robots import get_experiment
 from hil.session import Session, Setup
 from hil.sweep.plan import config_at
 from hil.sweep.spec import SweepSetup, Task

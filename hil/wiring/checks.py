@@ -2,14 +2,10 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import sys
-import tempfile
-from collections.abc import Callable, Iterator
 
-from hil.config import Config, ConfigError, robot_description_text
+from hil.config import Config, ConfigError
+from hil.robots import profile_of
 from hil.wiring.connection import Connection
 from hil.wiring.emulation import plant_servo_noise
 from hil.wiring.hardware import bus_config, encoder_counts_per_rev
@@ -27,7 +23,7 @@ def check_devices(config: Config) -> None:
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
     _check_encoder_offsets(config)
-    _check_robot_description(config)
+    profile_of(config).check(config)  # the robot's own (a URDF its model builds from, ...)
     plant_servo_noise(config)
 
 
@@ -43,43 +39,3 @@ def _check_encoder_offsets(config: Config) -> None:
                 f"{joint.encoder_offset_rad!r} rad is no reading of its encoder (an INTEGER32 "
                 f"count at {per_rev} counts/rev reaches +-{reach_rad:.0f} rad)"
             )
-
-
-def _check_robot_description(config: Config) -> None:
-    """A humanoid's [model] description must be a URDF the controller's model can be built
-    from, with its leg joints (pinocchio, ~20 ms): not found out after the emulator started."""
-    if config.model.robot != "dyros-jet":
-        return
-    text = robot_description_text(config)  # a URDF, or refused naming the file
-    from controller.humanoid import LegModel  # pinocchio: only for a humanoid
-
-    with _stderr_kept() as parser_said:  # the URDF parser writes its errors to fd 2 itself
-        try:
-            LegModel(text)
-            failure = None
-        except Exception as exc:  # noqa: BLE001 - pinocchio raises its own types: say them
-            failure = exc
-    if failure is not None:
-        said = " ".join(line.strip() for line in parser_said() if line.startswith("Error:"))
-        raise ConfigError(
-            f"{config.source} [model] description: {config.model.description!r} is not a "
-            f"description of DYROS-JET's legs: {type(failure).__name__}: {failure}"
-            + (f" (the URDF parser: {said})" if said else "")
-        ) from None
-
-
-@contextlib.contextmanager
-def _stderr_kept() -> Iterator[Callable[[], list[str]]]:
-    """File descriptor 2 goes to a temporary file for the block; yields what was written."""
-    lines: list[str] = []
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile(mode="w+") as kept:
-        os.dup2(kept.fileno(), 2)
-        try:
-            yield lambda: lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            kept.seek(0)
-            lines += kept.read().splitlines()

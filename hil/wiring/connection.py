@@ -49,22 +49,32 @@ class Connection:
     @classmethod
     def from_endpoints(cls, endpoints: dict[str, Any], config: Config) -> Connection:
         """The buses a `hil emulate` serves (its first stdout line), for this configuration's
-        chain and channel (an emulator serves one of each)."""
-        if len(config.dynamixel) != 1 or len(config.can) != 1:
+        chains, in order, and channel (an emulator serves one CAN channel)."""
+        if len(config.can) != 1:
             raise ConfigError(
-                f"{config.source}: the emulator serves one Dynamixel chain and one CAN channel; "
-                f"this configuration has {len(config.dynamixel)} and {len(config.can)}"
+                f"{config.source}: the emulator serves one CAN channel; this configuration "
+                f"has {len(config.can)}"
             )
         try:
-            port = str(endpoints["dynamixel_port"])
-            baudrate = int(endpoints["baudrate"])
+            ports = [
+                str(p) for p in endpoints.get("dynamixel_ports") or [endpoints["dynamixel_port"]]
+            ]
+            bauds = [int(b) for b in endpoints.get("baudrates") or [endpoints["baudrate"]]]
             can_kwargs = dict(endpoints["can"])
             pid = endpoints.get("pid")
             pid = None if pid is None else int(pid)
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"the emulator's endpoints lack or garble {exc}") from None
+        if len(ports) != len(config.dynamixel) or len(bauds) != len(ports):
+            raise ConfigError(
+                f"{config.source}: the emulator serves {len(ports)} Dynamixel chain(s); this "
+                f"configuration has {len(config.dynamixel)} ([[dynamixel]])"
+            )
         return cls(
-            {config.dynamixel[0].name: SerialEndpoint(port, baudrate)},
+            {
+                section.name: SerialEndpoint(port, baudrate)
+                for section, port, baudrate in zip(config.dynamixel, ports, bauds, strict=True)
+            },
             {config.can[0].name: can_kwargs},
             lockstep=endpoints.get("clock") == "lockstep",
             emulated=True,

@@ -15,27 +15,23 @@ import json
 import os
 import select
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
 
-from hil.config import Config, ConfigError, robot_description_text
+from hil.config import Config, ConfigError
 from hil.experiments import Experiment
+from hil.robots import profile_of
 from hil.vocabulary import EmulatorClock
 from hil.wiring.hardware import encoder_counts_per_rev
 from sim_backend.fork_server import ForkedEmulator, ForkServerError, fork_server
 from sim_backend.plant import TestbedPlantParams
 from sim_backend.scenario import FaultEvent, PelvisPushEvent, PushEvent, Scenario
 from sim_backend.servo import H54ServoParams, ServoCascade
-from sim_backend.spec import (
-    EmulatedJointSpec,
-    EmulatorSpec,
-    FloorBox,
-    HumanoidSpec,
-    SensorNoise,
-)
+from sim_backend.spec import EmulatedJointSpec, EmulatorSpec, SensorNoise
 from sim_backend.spec_json import spec_from_json, spec_to_json  # spec_from_json re-exported
 
 __all__ = [
@@ -71,38 +67,35 @@ def experiment_scenario(
 
 
 def plant_servo_noise(
-    config: Config, initial_angle_rad: float | None = None
+    config: Config, initial_angle_rad: np.ndarray | None = None
 ) -> tuple[TestbedPlantParams, H54ServoParams, SensorNoise]:
     """The emulated plant's, servo's and sensors' parameters: [emulator] plant / servo /
-    sensor_noise over their defaults."""
+    sensor_noise over their defaults (the plant's checked against the robot's own truth, its
+    profile's `emulation.plant`); `initial_angle_rad`: where the experiment starts, per joint."""
     emulator = config.emulator
+    emulation = profile_of(config).emulation
     overrides = dict(emulator.plant)
     if initial_angle_rad is not None:
-        overrides.setdefault("initial_link_angle_rad", initial_angle_rad)
-    plant_type: type = TestbedPlantParams
-    if config.model.robot == "dyros-jet":  # [emulator] plant: the humanoid's truth
-        from sim_backend.humanoid.params import RobotTruthParams
-
-        plant_type = RobotTruthParams
-    parts = (
-        ("plant", plant_type, overrides),
+        for key, value in emulation.start_overrides(initial_angle_rad).items():
+            overrides.setdefault(key, value)
+    parts: tuple[tuple[str, Callable[..., Any], dict[str, Any]], ...] = (
+        ("plant", lambda **values: emulation.plant(config, values), overrides),
         ("servo", H54ServoParams, emulator.servo),
         ("sensor_noise", SensorNoise, emulator.sensor_noise),
     )
     built = []
-    for key, cls, values in parts:
+    for key, build, values in parts:
         try:
-            built.append(cls(**values))
+            built.append(build(**values))
         except (TypeError, ValueError) as exc:  # an unknown key, or a value out of range
             raise ConfigError(f"{config.source} [emulator] {key}: {exc}") from exc
-    plant = built[0] if isinstance(built[0], TestbedPlantParams) else TestbedPlantParams()
-    return plant, built[1], built[2]
+    return built[0], built[1], built[2]
 
 
 @dataclass(frozen=True)
 class EmulatedJointStiffness:
-    """One emulated joint's static stiffness: its gear spring in series with its H54 servo at
-    the gain registers a run leaves it with (the configuration's, written at open, or the
+    """One emulated joint's static stiffness: its gear spring in series with its servo at the
+    gain registers a run leaves it with (the configuration's, written at open, or the
     emulated device's power-on values)."""
 
     name: str
@@ -119,31 +112,22 @@ class EmulatedJointStiffness:
 def emulated_joint_stiffness(config: Config) -> tuple[EmulatedJointStiffness, ...]:
     """The emulated robot's joints as `hil emulate` builds them from this configuration (the
     truth: [emulator] plant and servo over their defaults, and the [[joint]] gain registers)."""
-    plant, servo, _ = plant_servo_noise(config)
-    n = len(config.joints)
-    if config.model.robot == "dyros-jet":
-        from sim_backend.humanoid.params import RobotTruthParams
-
-        try:
-            truth = RobotTruthParams(**{"servo": servo, **dict(config.emulator.plant)})
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"{config.source} [emulator] plant: {exc}") from exc
-        gears = truth.per_joint("gear_stiffness_nm_per_rad")
-        servos = [truth.servo_params(i) for i in range(n)]
-        power_on = truth.position_gain_registers
-    else:
-        gears = (plant.gear_stiffness_nm_per_rad,) * n
-        servos = [servo] * n
-        power_on = (servo.default_position_gain_register,) * n
+    _, servo, _ = plant_servo_noise(config)
+    try:
+        truth = profile_of(config).emulation.joint_truth(config, servo)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{config.source} [emulator] plant: {exc}") from exc
     joints = []
     for i, joint in enumerate(config.joints):
-        params = servos[i]
+        params = truth.servos[i]
         cascade = params.cascade_at(
-            _register(joint.position_p_gain, power_on[i]),
+            _register(joint.position_p_gain, truth.power_on_position_gain_registers[i]),
             _register(joint.velocity_p_gain, params.default_velocity_p_gain_register),
             _register(joint.velocity_i_gain, params.default_velocity_i_gain_register),
         )
-        joints.append(EmulatedJointStiffness(joint.name, float(gears[i]), cascade))
+        joints.append(
+            EmulatedJointStiffness(joint.name, float(truth.gear_stiffness_nm_per_rad[i]), cascade)
+        )
     return tuple(joints)
 
 
@@ -162,16 +146,16 @@ def emulator_spec(
 ) -> EmulatorSpec:
     """The emulator of `config`'s robot for one run of `experiment` (its world and start
     posture); `truth_log`: where it writes its ground truth (sim_backend/truth_log.py)."""
-    if len(config.dynamixel) != 1 or len(config.can) != 1:
+    if len(config.can) != 1:
         raise ConfigError(
-            f"{config.source}: the emulator serves one Dynamixel chain and one CAN channel "
-            f"(this configuration has {len(config.dynamixel)} and {len(config.can)})"
+            f"{config.source}: the emulator serves one CAN channel (this configuration has "
+            f"{len(config.can)})"
         )
+    chains = [section.name for section in config.dynamixel]
     start = None
     if experiment is not None:
         start = np.broadcast_to(experiment.reference(0.0), (len(config.joints),))
-    initial = None if start is None or config.model.robot != "single_link" else float(start[0])
-    plant, servo, noise = plant_servo_noise(config, initial)
+    plant, servo, noise = plant_servo_noise(config, start)
     joints = tuple(
         EmulatedJointSpec(
             dxl_id=j.dynamixel_id,
@@ -182,16 +166,19 @@ def emulator_spec(
             motor_direction=j.motor_direction,
             motor_offset_rad=j.motor_offset_rad,
             model=config.actuator_of(j),
+            chain=chains.index(config.chain_of(j)),
         )
         for j in config.joints
     )
     for fault in faults:
         if not 0 <= fault.joint < len(joints):
             raise ConfigError(f"fault {fault.kind}: joint index {fault.joint} out of range")
+    emulation = profile_of(config).emulation
     try:
         return EmulatorSpec(
             joints=joints,
             baudrate=config.dynamixel[0].baudrate,
+            chain_baudrates=tuple(section.baudrate for section in config.dynamixel),
             can_bitrate=config.can[0].bitrate,
             force_sensor_node_id=config.force_sensor.node_id,
             period_s=config.loop.period_s,
@@ -202,37 +189,13 @@ def emulator_spec(
             scenario=experiment_scenario(experiment, faults),
             reboot_time_s=config.emulator.reboot_time_s,
             sensor_noise=noise,
-            robot="testbed" if config.model.robot == "single_link" else config.model.robot,
-            humanoid=_humanoid(config, start, experiment),
+            robot=emulation.kind,
             usb_latency_timer_s=_usb_latency_ms(config) * 1e-3,
             truth_log=str(truth_log) if truth_log is not None else "",
+            **emulation.spec_parts(config, start, experiment),
         )
     except ValueError as exc:
         raise ConfigError(f"{config.source}: {exc}") from exc
-
-
-def _humanoid(
-    config: Config, start: np.ndarray | None, experiment: Experiment | None = None
-) -> HumanoidSpec | None:
-    """The humanoid's part of the spec: its description, foot sensors, the posture it stands in
-    at power-on (the experiment's first reference; else the walking-ready posture), and the
-    objects on the floor of the experiment's world."""
-    if config.model.robot != "dyros-jet":
-        return None
-    from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD
-
-    node_ids = {sensor.name: sensor.node_id for sensor in config.force_torque_sensors}
-    posture = WALKING_READY_LEG_ANGLES_RAD if start is None else tuple(float(a) for a in start)
-    return HumanoidSpec(
-        urdf_text=robot_description_text(config),
-        ft_sensor_node_ids=(node_ids.get("left_foot", 0), node_ids.get("right_foot", 0)),
-        initial_leg_angles_rad=posture,
-        truth=dict(config.emulator.plant),
-        floor_boxes=tuple(
-            FloorBox(tuple(o.centre_m), tuple(o.size_m))
-            for o in (experiment.world.floor_objects if experiment is not None else ())
-        ),
-    )
 
 
 class EmulatorStartError(RuntimeError):

@@ -113,7 +113,7 @@ def _channel_config(config: Config, channel: str, connection: Connection) -> Can
             name=j.name,
         )
         for j in config.joints
-        if config.channel_of(j) == channel
+        if config.channel_of(j) == channel and j.encoder_node_id
     )
     sensor = config.force_sensor
     force = None
@@ -155,6 +155,7 @@ def bus_config(
         ),
         links_after_actuators=connection.lockstep,
         read_only=read_only,
+        without_link_encoder=config.joints_without_link_encoder,
     )
 
 

@@ -26,7 +26,7 @@ from drivers.joint_bus import (
     JointSample,
     add_wrench,
 )
-from hil.config import Config
+from hil.config import Config, ConfigError
 from hil.experiments import Experiment
 from hil.wiring.emulation import emulator_spec
 from sim_backend.direct import DirectTestbed
@@ -221,6 +221,13 @@ def in_process_bus(
     faults: tuple[FaultEvent, ...] = (),
     seed: int | None = None,
 ) -> InProcessJointBus:
-    """The in-process bus for this configuration and experiment (its world, these faults)."""
+    """The in-process bus for this configuration and experiment (its world, these faults); a
+    robot without link encoders runs on the emulated buses only (ConfigError)."""
+    if config.joints_without_link_encoder:
+        raise ConfigError(
+            f"{config.source}: joints {list(config.joints_without_link_encoder)} have no link "
+            "encoder (encoder_node_id = 0): the in-process bus has one on every joint; run it "
+            "on the emulated buses (--emulate, or a sweep's setup = 'embedded')"
+        )
     spec = emulator_spec(config, experiment=experiment, faults=faults, seed=seed)
     return InProcessJointBus(config, spec)

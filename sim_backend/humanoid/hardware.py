@@ -22,7 +22,7 @@ from sim_backend.testbed import Mounting
 
 
 class EmulatedHumanoid(PlantClock):
-    """See the module docstring; built from an `EmulatorSpec` whose robot is "dyros-jet"."""
+    """See the module docstring; built from an `EmulatorSpec` whose robot is HUMANOID."""
 
     held_until_started = True  # in its gantry until the run starts (realtime clock)
     # the pelvis (base_link) in the world: position [m] and orientation (x, y, z, w)
@@ -56,12 +56,12 @@ class EmulatedHumanoid(PlantClock):
     def build(cls, spec: EmulatorSpec) -> EmulatedHumanoid:
         humanoid = spec.humanoid
         if humanoid is None:
-            raise ValueError("a dyros-jet emulator needs its HumanoidSpec")
+            raise ValueError("a humanoid emulator needs its HumanoidSpec")
         check_joint_count("DYROS-JET's legs", spec.joints, N_LEG_JOINTS)
         devices = [
             H54Device(
                 joint.dxl_id,
-                baud_index=baud_index(spec.baudrate),
+                baud_index=baud_index(spec.joint_baudrate(joint)),
                 reboot_time_s=spec.reboot_time_s,
                 eeprom_overrides=leg_eeprom_overrides(),
             )

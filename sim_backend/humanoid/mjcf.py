@@ -1,7 +1,8 @@
 """MJCF of the emulated humanoid, generated from the URDF text (the same text the controller's
 pinocchio model reads, so the two models share every figure).
 
-Tree: the URDF's floating joint becomes MuJoCo's free joint on the pelvis. Each of the 12 leg
+Tree (sim_backend/urdf_mjcf.py, shared with the fixed-base robots): the URDF's floating joint
+becomes MuJoCo's free joint on the pelvis. Each of the 12 leg
 joints becomes a flexible joint, the way the 1-DoF testbed is built (sim_backend/plant.py):
 
     parent --[hinge "<J>_motor": rotor; armature = reflected inertia, gearbox friction]--> rotor
@@ -30,164 +31,44 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import mujoco
 import numpy as np
 
-from sim_backend.humanoid.description import Joint, Link, RobotDescription
 from sim_backend.humanoid.params import LEG_JOINT_NAMES, RobotTruthParams
 from sim_backend.spec import FloorBox
+from sim_backend.urdf_description import RobotDescription
+from sim_backend.urdf_mjcf import (
+    FT_SUFFIX,
+    MOTOR_SUFFIX,
+    ROTOR_MASS_KG,
+    BodyWriter,
+    FlexibleJointFigures,
+    LinkChanges,
+    SoleContact,
+)
+from sim_backend.urdf_mjcf import num as _num
+from sim_backend.urdf_mjcf import vec as _vec
 
-ROTOR_MASS_KG = 1e-4
-ROTOR_INERTIA_KG_M2 = 1e-9
-MOTOR_SUFFIX = "_motor"
-ROTOR_SUFFIX = "_rotor"
-FT_SUFFIX = "_ft"
+__all__ = ["FT_SUFFIX", "MOTOR_SUFFIX", "ROTOR_MASS_KG", "build_mjcf", "leg_figures"]
+
 FLOOR_BOX_PREFIX = "floor_box_"
 
 
-def _num(value: float) -> str:
-    return format(float(value), ".17g")
-
-
-def _vec(values: Sequence[float] | np.ndarray) -> str:
-    return " ".join(_num(v) for v in values)
-
-
-def _quat(rotation: np.ndarray) -> str:
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).ravel())
-    return _vec(quat)
-
-
-def _axis_rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
-    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle_rad) * k + (1 - np.cos(angle_rad)) * k @ k
-
-
-class _Writer:
-    def __init__(
-        self,
-        description: RobotDescription,
-        params: RobotTruthParams,
-        rigid: bool,
-        velocity_gains_nms_per_rad: Sequence[float],
-    ) -> None:
-        self.d = description
-        self.p = params
-        self.rigid = rigid
-        self.kv = list(velocity_gains_nms_per_rad)
-        self.lines: list[str] = []
-        self.actuators: list[str] = []
-        self.sensors: list[str] = []
-        self.ft_sites: list[str] = []
-
-    def emit(self, depth: int, text: str) -> None:
-        self.lines.append("  " * depth + text)
-
-    def inertial(self, depth: int, link: Link) -> None:
-        if link.inertial is None:
-            return
-        p = self.p
-        inertial = link.inertial
-        com = np.array(inertial.com_m, dtype=float)
-        if link.name == p.com_offset_link:
-            com = com + np.asarray(p.com_offset_m, dtype=float)
-        tensor = inertial.inertia_kg_m2 * p.mass_scale
-        full = (tensor[0, 0], tensor[1, 1], tensor[2, 2], tensor[0, 1], tensor[0, 2], tensor[1, 2])
-        self.emit(
-            depth,
-            f'<inertial pos="{_vec(com)}" mass="{_num(inertial.mass_kg * p.mass_scale)}" '
-            f'fullinertia="{_vec(full)}"/>',
+def leg_figures(
+    params: RobotTruthParams, velocity_gains_nms_per_rad: Sequence[float]
+) -> dict[str, FlexibleJointFigures]:
+    """Each leg joint's rotor, gear and kv from the robot's truth."""
+    p = params
+    return {
+        name: FlexibleJointFigures(
+            p.per_joint("motor_reflected_inertia_kg_m2")[i],
+            p.per_joint("gearbox_viscous_friction_nms_per_rad")[i],
+            p.per_joint("gearbox_coulomb_friction_nm")[i],
+            p.per_joint("gear_stiffness_nm_per_rad")[i],
+            p.per_joint("gear_damping_nms_per_rad")[i],
+            velocity_gains_nms_per_rad[i],
         )
-
-    def feet(self, depth: int, link: Link) -> None:
-        if not link.boxes:
-            return
-        name = link.name + FT_SUFFIX
-        c = self.p.contact
-        self.emit(depth, f'<body name="{name}">')
-        for box in link.boxes:
-            self.emit(
-                depth + 1,
-                f'<geom name="{box.name}" type="box" pos="{_vec(box.centre_m)}" '
-                f'size="{_vec(np.asarray(box.size_m) / 2)}" contype="1" conaffinity="1" '
-                f'condim="3" friction="{_num(c.friction)} 0.005 0.0001" '
-                f'solref="{_num(c.time_constant_s)} {_num(c.damping_ratio)}"/>',
-            )
-        self.emit(depth + 1, f'<site name="{name}" pos="0 0 0"/>')
-        self.emit(depth, "</body>")
-        self.ft_sites.append(name)
-        self.sensors.append(f'<force name="{name}_force" site="{name}"/>')
-        self.sensors.append(f'<torque name="{name}_torque" site="{name}"/>')
-
-    def link_contents(self, depth: int, link_name: str) -> None:
-        link = self.d.links[link_name]
-        self.inertial(depth, link)
-        self.feet(depth, link)
-        for joint_name in self.d.children.get(link_name, ()):
-            self.joint(depth, self.d.joints[joint_name])
-
-    def joint(self, depth: int, joint: Joint) -> None:
-        pos = _vec(joint.origin_xyz_m)
-        if joint.kind == "floating":
-            raise ValueError(f"floating joint {joint.name!r} below the root is not supported")
-        if joint.kind in ("revolute", "continuous") and joint.name in LEG_JOINT_NAMES:
-            self.leg_joint(depth, joint)
-            return
-        rotation = joint.origin_rotation
-        if joint.kind in ("revolute", "continuous"):
-            angles = self.p.upper_body_angles_rad
-            if joint.name not in angles:
-                raise ValueError(f"no weld angle for the joint {joint.name!r}")
-            rotation = rotation @ _axis_rotation(joint.axis, angles[joint.name])
-        elif joint.kind != "fixed":
-            raise ValueError(f"joint {joint.name!r}: type {joint.kind!r} is not supported")
-        self.emit(depth, f'<body name="{joint.child}" pos="{pos}" quat="{_quat(rotation)}">')
-        self.link_contents(depth + 1, joint.child)
-        self.emit(depth, "</body>")
-
-    def leg_joint(self, depth: int, joint: Joint) -> None:
-        index = LEG_JOINT_NAMES.index(joint.name)
-        p = self.p
-        axis = _vec(joint.axis)
-        placement = f'pos="{_vec(joint.origin_xyz_m)}" quat="{_quat(joint.origin_rotation)}"'
-        if self.rigid:
-            self.emit(depth, f'<body name="{joint.child}" {placement}>')
-            self.emit(depth + 1, f'<joint name="{joint.name}" type="hinge" axis="{axis}"/>')
-            self.link_contents(depth + 1, joint.child)
-            self.emit(depth, "</body>")
-            return
-        motor = joint.name + MOTOR_SUFFIX
-        self.emit(depth, f'<body name="{joint.name}{ROTOR_SUFFIX}" {placement}>')
-        self.emit(
-            depth + 1,
-            f'<joint name="{motor}" type="hinge" axis="{axis}" '
-            f'armature="{_num(p.per_joint("motor_reflected_inertia_kg_m2")[index])}" '
-            f'damping="{_num(p.per_joint("gearbox_viscous_friction_nms_per_rad")[index])}" '
-            f'frictionloss="{_num(p.per_joint("gearbox_coulomb_friction_nm")[index])}"/>',
-        )
-        self.emit(
-            depth + 1,
-            f'<inertial pos="0 0 0" mass="{_num(ROTOR_MASS_KG)}" '
-            f'diaginertia="{_vec([ROTOR_INERTIA_KG_M2] * 3)}"/>',
-        )
-        self.emit(depth + 1, f'<body name="{joint.child}">')
-        self.emit(
-            depth + 2,
-            f'<joint name="{joint.name}" type="hinge" axis="{axis}" springref="0" '
-            f'stiffness="{_num(p.per_joint("gear_stiffness_nm_per_rad")[index])}" '
-            f'damping="{_num(p.per_joint("gear_damping_nms_per_rad")[index])}"/>',
-        )
-        self.link_contents(depth + 2, joint.child)
-        self.emit(depth + 1, "</body>")
-        self.emit(depth, "</body>")
-        kv = self.kv[index]
-        self.actuators.append(
-            f'<general name="{motor}" joint="{motor}" gainprm="{_num(kv)}" biastype="affine" '
-            f'biasprm="0 0 {_num(-kv)}" ctrllimited="false" forcelimited="true" '
-            f'forcerange="-1000 1000"/>'
-        )
+        for i, name in enumerate(LEG_JOINT_NAMES)
+    }
 
 
 def build_mjcf(
@@ -217,7 +98,15 @@ def build_mjcf(
     missing = [name for name in LEG_JOINT_NAMES if name not in description.joints]
     if missing:
         raise ValueError(f"the robot description lacks the leg joints {missing}")
-    writer = _Writer(description, params, rigid, velocity_gains_nms_per_rad)
+    c = params.contact
+    writer = BodyWriter(
+        description,
+        leg_figures(params, velocity_gains_nms_per_rad),
+        params.upper_body_angles_rad,
+        links=LinkChanges(params.mass_scale, params.com_offset_link, params.com_offset_m),
+        sole_contact=SoleContact(c.friction, c.time_constant_s, c.damping_ratio),
+        rigid=rigid,
+    )
     writer.emit(2, f'<body name="{base.child}" pos="{_vec(base.origin_xyz_m)}">')
     writer.emit(3, f'<freejoint name="{base.name}"/>')
     writer.link_contents(3, base.child)
@@ -225,7 +114,6 @@ def build_mjcf(
     body = "\n".join(writer.lines)
     actuators = "\n    ".join(writer.actuators)
     sensors = "\n    ".join(writer.sensors)
-    c = params.contact
     contact = (
         f'contype="1" conaffinity="1" condim="3" friction="{_num(c.friction)} 0.005 0.0001" '
         f'solref="{_num(c.time_constant_s)} {_num(c.damping_ratio)}"'

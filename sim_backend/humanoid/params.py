@@ -18,6 +18,8 @@ from typing import Literal
 
 from sim_backend.servo import H54ServoParams
 
+# DYROS-JET's leg joints and upper body: the emulator's one copy (the controller holds its own,
+# controller/humanoid/leg_model.py; tests/hil/test_dyros_jet_facts.py keeps them equal).
 LEFT_LEG_JOINT_NAMES: tuple[str, ...] = (
     "L_HipYaw",
     "L_HipRoll",

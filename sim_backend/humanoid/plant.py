@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from sim_backend.humanoid.description import parse_urdf
+from sim_backend.flexible_robot import strided_view
 from sim_backend.humanoid.mjcf import FT_SUFFIX, MOTOR_SUFFIX, build_mjcf
 from sim_backend.humanoid.params import (
     FOOT_LINK_NAMES,
@@ -30,6 +30,7 @@ from sim_backend.humanoid.params import (
     RobotTruthParams,
 )
 from sim_backend.spec import FloorBox
+from sim_backend.urdf_description import parse_urdf
 
 
 class HumanoidPlant:
@@ -92,8 +93,8 @@ class HumanoidPlant:
         # The motors' angles and velocities as views into MuJoCo's state where the hinges'
         # addresses are evenly spaced (they are: motor and gear hinges alternate), so that the
         # firmware reads them every step without a copy; copies otherwise.
-        self._motor_angle_view = _strided_view(self.data.qpos, self._motor_qpos)
-        self._motor_velocity_view = _strided_view(self.data.qvel, self._motor_dof)
+        self._motor_angle_view = strided_view(self.data.qpos, self._motor_qpos)
+        self._motor_velocity_view = strided_view(self.data.qvel, self._motor_dof)
         mujoco.mj_forward(model, self.data)
 
     # --- state (copies, lab leg order) --------------------------------------------------------
@@ -326,17 +327,6 @@ class HumanoidPlant:
         middle = np.mean(bottoms, axis=0)
         data.qpos[:3] = (-middle[0], -middle[1], -lowest)
         mujoco.mj_forward(model, data)
-
-
-def _strided_view(array: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
-    """array[indices] as a view (a slice) when the indices are evenly spaced, else None."""
-    if len(indices) < 2:
-        return array[indices[0] : indices[0] + 1] if len(indices) else None
-    step = int(indices[1] - indices[0])
-    if step <= 0 or np.any(np.diff(indices) != step):
-        return None
-    view = array[int(indices[0]) : int(indices[-1]) + 1 : step]
-    return view if np.array_equal(view, array[indices]) else None
 
 
 def _half_rotation(rotation: np.ndarray) -> np.ndarray:

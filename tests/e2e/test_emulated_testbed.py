@@ -16,7 +16,7 @@ from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
 from hil.cli import main
 from hil.config import load_config
-from hil.experiments import get_experiment
+from hil.robots import get_experiment
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
 

@@ -21,8 +21,8 @@ from pathlib import Path
 import pytest
 
 from hil.config import load_config
-from hil.experiments import get_experiment
 from hil.loop import LockstepClock, RunRequest, run_experiment
+from hil.robots import get_experiment
 from hil.vocabulary import ControllerChoice
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import emulator_spec

@@ -19,11 +19,14 @@ import pytest
 from hil.cli import main
 from hil.config import load_config
 from hil.experiments import CONTACT, IMPACT
+from hil.robots import profile
 from hil.session import Session, Setup
 from hil.session.comparison import run_plan, write_comparison_report
 from hil.sweep.processes import descendants
 from hil.vocabulary import ControllerChoice, ControllerKind
 from tests.support.rig import assert_log_complete, load_run
+
+TESTBED = profile("testbed").comparison()  # the testbed's own comparison and report
 
 PLAN = [
     (dataclasses.replace(IMPACT, duration_s=1.5), ControllerChoice(ControllerKind.PID)),
@@ -36,7 +39,7 @@ def _comparison(root: Path, workers: int) -> dict:
     session = Session(load_config(), Setup.EMBEDDED, out_root=root, quiet=True)
     outcome = run_plan(session, PLAN, root, workers=workers)
     assert outcome.incomplete is None
-    report = write_comparison_report(root, outcome.entries, session.description, 0.0)
+    report = write_comparison_report(root, outcome.entries, session.description, 0.0, TESTBED)
     return json.loads(json.dumps(report.summary).replace(str(root), "ROOT"))
 
 

@@ -23,8 +23,8 @@ import pytest
 import hil.loop.runner
 import hil.loop.torque
 from hil.config import load_config
-from hil.experiments import get_experiment
 from hil.loop import LockstepClock, RunRequest, run_experiment
+from hil.robots import get_experiment
 from hil.vocabulary import ControllerChoice
 from hil.wiring import Connection, make_bus
 from sim_backend.scenario import parse_fault

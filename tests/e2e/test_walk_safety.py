@@ -28,8 +28,8 @@ import pytest
 
 from hil.cli import main
 from hil.config import default_config_text, load_config
-from hil.experiments import get_experiment
 from hil.experiments.legs import leg_model, pelvis_rotation
+from hil.robots import get_experiment
 from hil.wiring.in_process import InProcessJointBus, in_process_bus
 from tests.support.rig import assert_log_complete, load_run, run_in_process
 

@@ -26,9 +26,23 @@ HIL_LAYERS = {
         "hil.identify",
         "hil.plugins",
     },
+    # the robots, one folder each, and their registry: above what a robot's profile holds
+    "hil.robots": {
+        "hil.vocabulary",
+        "hil.config",
+        "hil.output",
+        "hil.experiments",
+        "hil.plugins",
+    },
     "hil.safety": {"hil.vocabulary", "hil.config"},
-    "hil.controllers": {"hil.vocabulary", "hil.config", "hil.experiments", "hil.plugins"},
-    "hil.wiring": {"hil.vocabulary", "hil.config", "hil.experiments"},
+    "hil.controllers": {
+        "hil.vocabulary",
+        "hil.config",
+        "hil.experiments",
+        "hil.plugins",
+        "hil.robots",
+    },
+    "hil.wiring": {"hil.vocabulary", "hil.config", "hil.experiments", "hil.robots"},
     "hil.loop": {
         "hil.vocabulary",
         "hil.controllers",
@@ -37,16 +51,18 @@ HIL_LAYERS = {
         "hil.experiments",
         "hil.safety",
         "hil.wiring",
+        "hil.robots",
     },
     "hil.identify": {"hil.vocabulary", "hil.output"},
     "hil.bringup": {"hil.vocabulary", "hil.config"},
-    "hil.render": {"hil.vocabulary", "hil.output", "hil.experiments"},
+    "hil.render": {"hil.vocabulary", "hil.output", "hil.experiments", "hil.robots"},
     "hil.session": {
         "hil.vocabulary",
         "hil.controllers",
         "hil.config",
         "hil.output",
         "hil.experiments",
+        "hil.robots",
         "hil.safety",
         "hil.wiring",
         "hil.loop",
@@ -58,6 +74,7 @@ HIL_LAYERS = {
         "hil.config",
         "hil.output",
         "hil.experiments",
+        "hil.robots",
         "hil.wiring",
         "hil.loop",
     },
@@ -67,6 +84,7 @@ HIL_LAYERS = {
         "hil.config",
         "hil.output",
         "hil.experiments",
+        "hil.robots",
         "hil.wiring",
         "hil.loop",
         "hil.session",
@@ -77,6 +95,7 @@ HIL_LAYERS = {
         "hil.config",
         "hil.output",
         "hil.experiments",
+        "hil.robots",
         "hil.safety",
         "hil.wiring",
         "hil.loop",
@@ -89,6 +108,7 @@ HIL_LAYERS = {
         "hil.config",
         "hil.output",
         "hil.experiments",
+        "hil.robots",
         "hil.safety",
         "hil.wiring",
         "hil.loop",
@@ -208,3 +228,31 @@ def test_no_function_in_hil_is_longer_than_80_lines() -> None:
                 if length > 80:
                     long.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name} ({length})")
     assert not long, long
+
+
+# Where a robot's name may be written as a string: its own folder and the registry
+# (hil/robots/), and the enum that defines the names (hil.vocabulary.Robot).
+ROBOT_NAME_HOMES = ("hil/robots/", "hil/vocabulary.py")
+
+
+def _robot_names() -> set[str]:
+    from hil.vocabulary import _TESTBED_OLD_NAME, Robot
+
+    return {str(robot) for robot in Robot} | {_TESTBED_OLD_NAME}
+
+
+def test_no_robot_is_named_by_a_string_outside_its_folder_and_the_registry() -> None:
+    names = _robot_names()
+    found = []
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            where = str(path.relative_to(ROOT))
+            if where.startswith(ROBOT_NAME_HOMES):
+                continue
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.Constant) and node.value in names:
+                    found.append(f"{where}:{node.lineno} {node.value!r}")
+    assert not found, (
+        "a robot named by a string (compare hil.vocabulary.Robot, or put it in the robot's "
+        f"folder, hil/robots/<name>/): {found}"
+    )

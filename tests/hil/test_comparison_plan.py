@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from controller import CompositionReading
-from hil.session.comparison import comparison_plan
+from hil.robots.testbed.comparison import comparison_plan
 
 
 @pytest.mark.parametrize("reading", list(CompositionReading))

@@ -24,7 +24,7 @@ from hil.config import ConfigError, config_from_record, load_config
 from hil.config.emulator_overrides import RANGES
 from hil.config.ranges import figures
 from hil.config.schema import ConfigFile
-from hil.experiments import get_experiment
+from hil.robots import get_experiment
 from hil.sweep import load_spec
 from hil.sweep.checks import checked_plan
 from hil.sweep.plan import config_at

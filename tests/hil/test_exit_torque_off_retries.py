@@ -11,8 +11,8 @@ import pytest
 
 from drivers.joint_bus import BusError
 from hil.config import load_config
-from hil.experiments import get_experiment
 from hil.loop.torque import EXIT_TORQUE_OFF_TRIES
+from hil.robots import get_experiment
 from hil.wiring.in_process import in_process_bus
 from tests.support.rig import assert_log_complete, run_in_process
 

@@ -9,8 +9,8 @@ import pytest
 
 from drivers.joint_bus import JointSample, add_wrench
 from hil.config import ConfigError, load_config
-from hil.experiments import get_experiment
 from hil.experiments.legs import REST_TICKS, FeetCarryTheRobot
+from hil.robots import get_experiment
 from hil.safety import SafeState, Supervisor
 from hil.vocabulary import Reaction, ReactionPolicy, RestCondition
 from tests.support.one_joint import one_joint_supervisor

@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 from hil.config import load_config
-from hil.experiments import get_experiment
 from hil.loop import LockstepClock, RunRequest, StopFlag, run_experiment
 from hil.loop.gain_scheduler import DESIGNER_STALL_S, GainScheduler
+from hil.robots import get_experiment
 from hil.vocabulary import ControllerChoice
 from hil.wiring.in_process import in_process_bus
 from tests.support.rig import assert_log_complete, load_run

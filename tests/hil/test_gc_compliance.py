@@ -170,7 +170,7 @@ def test_a_comparison_runs_gc_with_each_reading_and_builds_each() -> None:
     its run directory and the report's lookup, which tells the two GC runs apart."""
     from hil.controllers.paper_factory import build_controller
     from hil.output.report import RunEntry, find
-    from hil.session.comparison import humanoid_choices
+    from hil.robots.dyros_jet.comparison import humanoid_choices
     from hil.vocabulary import ControllerChoice, ControllerKind
 
     choices = humanoid_choices(0.2)

@@ -20,6 +20,7 @@ from hil.experiments import CONTACT, IMPACT, Experiment
 from hil.output import PER_JOINT_COLUMNS, RunEntry, RunLog, RunResult, load_run
 from hil.output.plots import plot_run
 from hil.output.report import Relation
+from hil.robots import profile
 from hil.session.comparison import write_comparison_report
 from hil.vocabulary import (
     ControllerChoice,
@@ -30,6 +31,7 @@ from hil.vocabulary import (
     Termination,
 )
 
+TESTBED = profile("testbed").comparison()  # the testbed's own comparison and report
 pytestmark = pytest.mark.timeout(60)
 
 PERIOD_S = 0.01  # coarser than 200 Hz: keeps the files small, the metrics do not care
@@ -301,7 +303,7 @@ def test_write_report_creates_the_files_and_says_where_they_came_from(
     paper_like: tuple[Path, list],
 ) -> None:
     root, results = paper_like
-    report = write_comparison_report(root, results, "synthetic setup", 12.5)
+    report = write_comparison_report(root, results, "synthetic setup", 12.5, TESTBED)
     for name in ("report.md", "report.json", "fig5_contact.png", "fig6_impact.png"):
         path = root / name
         assert path.is_file() and path.stat().st_size > 0, name
@@ -328,7 +330,7 @@ def test_write_report_creates_the_files_and_says_where_they_came_from(
 
 def test_report_marks_failures_in_markdown_and_text(contrary: tuple[Path, list]) -> None:
     root, results = contrary
-    report = write_comparison_report(root, results, "synthetic setup", 1.0)
+    report = write_comparison_report(root, results, "synthetic setup", 1.0, TESTBED)
     markdown = report.markdown_path.read_text()
     assert "**does not hold**" in markdown and "**holds**" not in markdown
     assert "[does not hold]" in report.table_text

@@ -19,9 +19,10 @@ from controller.walking import SegmentKind, yaw_rotation
 from controller.walking.dyros_jet_figures import FOOT_LENGTH_M, FOOT_WIDTH_M
 from drivers.joint_bus import wrench_keys
 from hil.config import load_config, robot_description_text
-from hil.experiments import EXPERIMENTS, ROBOT_OF_EXPERIMENT, STEP_ON_OBJECT, WALK_DYNAMIC
+from hil.experiments import STEP_ON_OBJECT, WALK_DYNAMIC
 from hil.experiments.walking import OBJECT_FOOTSTEP, OBJECT_HEIGHT_M, WalkingExperiment
 from hil.output.rundir import RunData
+from hil.robots import EXPERIMENTS, robot_of_experiment
 from hil.wiring.emulation import emulator_spec, spec_from_json, spec_to_json
 
 WALKS = ("walk-slow", "walk-dynamic", "step-on-object")
@@ -40,7 +41,7 @@ def model(config) -> LegModel:
 def test_registered_for_dyros_jet() -> None:
     for name in WALKS:
         assert isinstance(EXPERIMENTS[name], WalkingExperiment)
-        assert ROBOT_OF_EXPERIMENT[name] == "dyros-jet"
+        assert robot_of_experiment(name) == "dyros-jet"
     slow, dynamic = EXPERIMENTS["walk-slow"], EXPERIMENTS["walk-dynamic"]
     assert (slow.single_support_s, slow.double_support_s) == (0.8, 3.2)  # Sec. IV-C
     assert (dynamic.single_support_s, dynamic.double_support_s) == (0.8, 0.3)

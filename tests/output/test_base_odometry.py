@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from hil.config import load_config
-from hil.experiments import get_experiment
 from hil.loop.clock import LockstepClock
 from hil.loop.request import RunRequest
 from hil.loop.runner import run_experiment
@@ -18,6 +17,7 @@ from hil.output.robot_description import robot_of_run
 from hil.output.robot_frames import robot_frames
 from hil.output.run_samples import run_joint_names, sensor_columns
 from hil.output.rundir import load_run
+from hil.robots import get_experiment
 from hil.vocabulary import ControllerChoice
 from hil.wiring.in_process import in_process_bus
 

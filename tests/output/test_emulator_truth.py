@@ -60,7 +60,7 @@ def test_a_planned_run_whose_directory_is_not_made_yet_starts_its_emulator(
     emulator, which opens its truth there first, must find it (before, every humanoid
     comparison run failed at start-up with FileNotFoundError)."""
     from hil.config import load_config
-    from hil.experiments import get_experiment
+    from hil.robots import get_experiment
     from hil.session import Session, Setup
     from hil.vocabulary import ControllerChoice, ControllerKind
 

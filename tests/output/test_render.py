@@ -73,8 +73,8 @@ def test_hil_render_draws_a_walk(walk_run: Path, tmp_path: Path) -> None:
 
 
 def test_the_step_on_object_instants_are_the_papers_at_the_plans_step() -> None:
-    from hil.experiments import get_experiment
     from hil.output.rundir import RunData
+    from hil.robots import get_experiment
 
     experiment = get_experiment(STEP_ON_OBJECT)
     singles = [s for s in experiment.pattern.timeline.segments if s.kind.value == "single_support"]

@@ -252,7 +252,7 @@ def test_the_bag_written_during_a_run_is_the_one_the_export_makes(tmp_path: Path
     """The log writer's own bag (kept when there is no emulator truth: in process, on
     hardware, or if the run ends before it is made again), byte for byte the export's."""
     from hil.config import load_config
-    from hil.experiments import get_experiment
+    from hil.robots import get_experiment
     from hil.session import Session, Setup
     from hil.vocabulary import ControllerChoice
 

@@ -17,10 +17,10 @@ import pytest
 
 from controller.humanoid import LAB_WALK_INIT_UPPER_BODY_RAD as CONTROLLER_UPPER_BODY
 from controller.humanoid import WALKING_READY_LEG_ANGLES_RAD, LegModel
-from sim_backend.humanoid.description import parse_urdf
 from sim_backend.humanoid.mjcf import MOTOR_SUFFIX, ROTOR_MASS_KG, build_mjcf
 from sim_backend.humanoid.params import LAB_WALK_INIT_UPPER_BODY_RAD as EMULATOR_UPPER_BODY
 from sim_backend.humanoid.params import LEG_JOINT_NAMES, RobotTruthParams
+from sim_backend.urdf_description import parse_urdf
 
 URDF_PATH = Path(__file__).resolve().parents[2] / "hil" / "data" / "robots" / "dyros_jet.urdf"
 RNG_SEED = 20180521

@@ -24,10 +24,11 @@ from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
 from hil.cli import main
 from hil.config import Config, load_config
-from hil.experiments import Experiment, get_experiment
+from hil.experiments import Experiment
 from hil.loop import LockstepClock, RunRequest, run_experiment
 from hil.output import RunData, RunResult
 from hil.output import load_run as load_run_data
+from hil.robots import get_experiment
 from hil.vocabulary import ControllerChoice
 from hil.wiring import Connection, make_bus
 from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
