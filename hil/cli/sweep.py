@@ -95,7 +95,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     for path in outcome.maps:
         print(f"map: {path}")
     if outcome.interrupted or not outcome.complete:
-        print("incomplete: rerun the same command to resume (finished runs are kept)")
+        why = f" ({outcome.signal})" if outcome.signal else ""
+        print(f"incomplete{why}: rerun the same command to resume (finished runs are kept)")
     if args.json:
         print(dumps(outcome.record(spec)))
     return ExitCode.OK if outcome.complete else ExitCode.FAILED

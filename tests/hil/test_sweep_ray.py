@@ -99,3 +99,38 @@ def test_the_sweep_bench_measures_both_worker_counts_and_the_overhead() -> None:
     # the runs' own time inside a worker is part of the elapsed time, not more
     assert report["seconds_inside_run"]["ray_1"] <= report["seconds_per_run"]["ray_1"]
     assert "scaling 2 workers / 1" in sweep_report_text(report)
+
+
+COMPOSITION = """
+title = "composition"
+experiments = ["impact"]
+controllers = ["pid", "gc+lqr+dob@1/accumulated-integral"]
+duration_s = 2.5
+[[parameter]]
+name = "reading"
+targets = ["controller.composition"]
+values = ["accumulated", "literal", "accumulated-integral"]
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.ray
+@pytest.mark.timeout(600)
+def test_a_composition_grid_runs_a_run_shared_by_its_points_once(tmp_path: Path) -> None:
+    ray = pytest.importorskip("ray")
+    spec = parse_spec(COMPOSITION, "composition")
+    try:
+        outcome = run_sweep(spec, CONFIG, tmp_path, workers=1)
+    finally:
+        ray.shutdown()
+    # pid reads no composition, and the DOB's reading is named: 2 runs for 3 points x 2
+    assert (outcome.total, outcome.done_now, outcome.complete) == (2, 2, True)
+    with open(tmp_path / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 and len({r["run_id"] for r in rows}) == 2
+    with open(tmp_path / "relations.csv", newline="") as f:
+        relations = list(csv.DictReader(f))
+    assert {r["reading"] for r in relations} == {"accumulated", "literal", "accumulated-integral"}
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    stable = next(r for r in summary["relations"] if "stable after the push" in r["claim"])
+    assert stable["holds"] + stable["does_not_hold"] + stable["not_checked"] == 3  # per point
