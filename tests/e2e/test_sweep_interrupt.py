@@ -120,8 +120,9 @@ def test_a_stopped_sweep_then_the_same_command_resumes_without_repeating(
 
 
 # `python -c WRAPPER_AT MOMENT SIGNAL ARGS...`: `hil ARGS...`, signalled (as WRAPPER does) at
-# MOMENT: "table" when results.csv has been read (what is done), before Ray starts; "ray-start"
-# while `ray.init` runs, once its raylet is up (a thread watches for it).
+# MOMENT: "plan" as the plan is checked; "table" when results.csv has been read (what is
+# done), before Ray starts; "ray-start" while `ray.init` runs, once its raylet is up (a thread
+# watches for it).
 WRAPPER_AT = """
 import os, signal, sys, threading, time
 import ray
@@ -135,7 +136,13 @@ def send():
         os.killpg(os.getpgid(0), signum)
     else:
         os.kill(os.getpid(), signum)
-if moment == "table":
+if moment == "plan":
+    checked_plan = engine.checked_plan
+    def signal_then_plan(*args, **kwargs):
+        send()
+        return checked_plan(*args, **kwargs)
+    engine.checked_plan = signal_then_plan
+elif moment == "table":
     table_init = engine.ResultsTable.__init__
     def table_then_signal(self, *args, **kwargs):
         table_init(self, *args, **kwargs)
@@ -194,6 +201,20 @@ def test_a_signal_before_ray_starts_ends_the_sweep_with_its_summary(
     assert "Traceback" not in err, err
     assert _interrupted_summary(out, signame)["finished"] == 0
     assert f"incomplete ({signame}): rerun the same command to resume" in stdout
+
+
+@pytest.mark.subprocess
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_plan_is_made_stops_it_writing_nothing(
+    tmp_path: Path, signame: str
+) -> None:
+    process, out = _sweep_at(tmp_path, "plan", signame)
+    _, err = process.communicate(timeout=100)
+    assert process.returncode == 1, err
+    assert "Traceback" not in err, err
+    assert f"interrupted ({signame}) while the plan was made: nothing was run" in err, err
+    assert not out.exists()  # nothing written
 
 
 @pytest.mark.slow
