@@ -17,18 +17,10 @@ from hil.config import default_config_text, load_config
 from hil.sweep import parse_spec, plan, run_sweep
 from hil.sweep.table import ResultsTable, header
 from hil.sweep.task import task_row
+from tests.hil.test_sweep_ray import TINY
 
 CONFIG = load_config()
-SPEC = """
-title = "identity"
-experiments = ["impact"]
-controllers = ["pid", "gc+lqr+dob@1"]
-duration_s = 2.5
-[[parameter]]
-name = "Kp"
-targets = ["emulator.servo.position_gain_per_s"]
-values = [8.0, 12.0]
-"""
+SPEC = TINY  # 2 points x 2 controllers
 # a composition grid: a controller that names its reading runs the same at every composition,
 # and pid reads none
 COMPOSITION = """

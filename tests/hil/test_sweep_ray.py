@@ -101,16 +101,12 @@ def test_the_sweep_bench_measures_both_worker_counts_and_the_overhead() -> None:
     assert "scaling 2 workers / 1" in sweep_report_text(report)
 
 
-COMPOSITION = """
-title = "composition"
-experiments = ["impact"]
-controllers = ["pid", "gc+lqr+dob@1/accumulated-integral"]
-duration_s = 2.5
-[[parameter]]
-name = "reading"
-targets = ["controller.composition"]
-values = ["accumulated", "literal", "accumulated-integral"]
-"""
+# pid reads no composition, and the DOB names its reading: one run each at every point
+COMPOSITION = TINY.replace('"gc+lqr+dob@1"', '"gc+lqr+dob@1/accumulated-integral"').replace(
+    'name = "Kp"\ntargets = ["emulator.servo.position_gain_per_s"]\nvalues = [8.0, 12.0]',
+    'name = "reading"\ntargets = ["controller.composition"]\n'
+    'values = ["accumulated", "literal", "accumulated-integral"]',
+)
 
 
 @pytest.mark.slow
@@ -118,12 +114,12 @@ values = ["accumulated", "literal", "accumulated-integral"]
 @pytest.mark.timeout(600)
 def test_a_composition_grid_runs_a_run_shared_by_its_points_once(tmp_path: Path) -> None:
     ray = pytest.importorskip("ray")
-    spec = parse_spec(COMPOSITION, "composition")
+    assert "controller.composition" in COMPOSITION and "Kp" not in COMPOSITION
     try:
-        outcome = run_sweep(spec, CONFIG, tmp_path, workers=1)
+        outcome = run_sweep(parse_spec(COMPOSITION, "composition"), CONFIG, tmp_path, workers=1)
     finally:
         ray.shutdown()
-    # pid reads no composition, and the DOB's reading is named: 2 runs for 3 points x 2
+    # 2 runs for 3 points x 2 controllers
     assert (outcome.total, outcome.done_now, outcome.complete) == (2, 2, True)
     with open(tmp_path / "results.csv", newline="") as f:
         rows = list(csv.DictReader(f))
