@@ -304,11 +304,10 @@ def point_rows(tasks: Sequence[Task], table: ResultsTable) -> list[dict[str, Any
     point drawn twice is one point."""
     rows: dict[tuple[str, str, str], dict[str, Any]] = {}
     for t in tasks:
-        if t.run_id in table:
-            row = {**table.rows[t.run_id], **t.values, "point_id": t.point_id}
-            rows.setdefault(
-                (t.point_id, t.experiment, t.controller), row | {"controller": t.controller}
-            )
+        key = (t.point_id, t.experiment, t.controller)
+        if t.run_id in table and key not in rows:
+            ours = {**t.values, "point_id": t.point_id, "controller": t.controller}
+            rows[key] = {**table.rows[t.run_id], **ours}
     return list(rows.values())
 
 
@@ -326,8 +325,10 @@ def write_findings(spec: SweepSpec, rows: list[dict[str, Any]], outcome: SweepOu
             grid=spec.sampling is Sampling.GRID,
             title=spec.title,
         )
-    summary = outcome.record(spec)
-    (outcome.out_dir / "summary.json").write_text(dumps(summary, indent=2) + "\n")
+    summary = outcome.out_dir / "summary.json"
+    written = summary.with_suffix(".json.tmp")
+    written.write_text(dumps(outcome.record(spec), indent=2) + "\n")
+    os.replace(written, summary)  # never a half-written summary.json
 
 
 def _write_relations(
