@@ -4,8 +4,10 @@ the sampled space in which each of the paper's relations holds (hil/sweep).
 
 The output directory defaults to runs/sweep-<spec name>, so rerunning the same command after
 Ctrl-C resumes it. Exit status: 0 when every run of the plan is finished (a run that failed is
-recorded and counted), 1 when interrupted or incomplete, 2 for a bad spec, a bad option or
-no Ray installed.
+recorded and counted), 1 when interrupted (Ctrl-C or SIGTERM, at any moment) or incomplete, 2
+for a bad spec, a bad option, no Ray installed, an output directory that holds another sweep's
+results (another base configuration, spec settings or code: docs/sweep.md) or one another
+sweep is writing to.
 """
 
 from __future__ import annotations
@@ -55,6 +57,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         ClusterUnreachable,
         RayMissing,
         SpecError,
+        SweepBusy,
+        SweepInterrupted,
+        SweepMismatch,
         TableMismatch,
         fractions_text,
         import_ray,
@@ -76,9 +81,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             max_runs=args.max_runs,
             say=lambda text: print(text, file=sys.stderr, flush=True),
         )
-    except (RayMissing, SpecError, TableMismatch, ConfigError, ClusterUnreachable) as exc:
+    except (
+        RayMissing,
+        SpecError,
+        TableMismatch,
+        ConfigError,
+        ClusterUnreachable,
+        SweepMismatch,
+        SweepBusy,
+    ) as exc:
         print(f"hil sweep: {exc}", file=sys.stderr)
         return ExitCode.USAGE
+    except SweepInterrupted as exc:
+        print(f"hil sweep: {exc}", file=sys.stderr)
+        return ExitCode.FAILED
     print(f"{spec.title}")
     print(
         f"{outcome.done_before + outcome.done_now} of {outcome.total} runs finished "
@@ -88,7 +104,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     for path in outcome.maps:
         print(f"map: {path}")
     if outcome.interrupted or not outcome.complete:
-        print("incomplete: rerun the same command to resume (finished runs are kept)")
+        why = f" ({outcome.signal})" if outcome.signal else ""
+        print(f"incomplete{why}: rerun the same command to resume (finished runs are kept)")
     if args.json:
         print(dumps(outcome.record(spec)))
     return ExitCode.OK if outcome.complete else ExitCode.FAILED

@@ -5,7 +5,10 @@
     table.py      results.csv, appended per finished run; what a rerun skips
     relations.py  the paper's relations at every point, and the fraction where each holds
     maps.py       maps/<experiment>.png: where each relation holds over two parameters
-    engine.py     Ray (local or a cluster), progress with ETA, Ctrl-C, the findings
+    identity.py   what shapes every run (the base configuration too): sweep.json, a resume's check
+    lock.py       one sweep at a time in an output directory
+    interrupts.py Ctrl-C and SIGTERM at every moment of a sweep
+    engine.py     Ray (local or a cluster), progress with ETA, the findings
     bench.py      runs per minute with 1 and 2 workers, and the engine's per-run overhead
 
 Ray is an optional extra (`pip install -e '.[sweep]'`); only engine.py and bench.py import it,
@@ -16,11 +19,14 @@ from hil.sweep.engine import (
     INSTALL_HINT,
     ClusterUnreachable,
     RayMissing,
+    SweepInterrupted,
     SweepOutcome,
     fractions_text,
     import_ray,
     run_sweep,
 )
+from hil.sweep.identity import SweepMismatch
+from hil.sweep.lock import SweepBusy
 from hil.sweep.plan import plan
 from hil.sweep.spec import (
     ModelFollows,
@@ -44,6 +50,9 @@ __all__ = [
     "ResultsTable",
     "Sampling",
     "SpecError",
+    "SweepBusy",
+    "SweepInterrupted",
+    "SweepMismatch",
     "SweepOutcome",
     "SweepParameter",
     "SweepSetup",

@@ -92,8 +92,8 @@ def _measure(tasks: list[Task], root: Path, repeats: int, say: Callable[[str], N
     figures: dict[str, Any] = {mode: [0.0, 0.0] for mode in MODES}
     started = time.perf_counter()
     before = descendants(os.getpid())
-    start_ray(2, None)
     try:
+        start_ray(2, None)  # inside: a Ctrl-C held during the start comes right after it
         initialised = time.perf_counter()
         remote = ray.remote(num_cpus=1, max_retries=0)(run_task)
         ray.get([remote.remote(task, str(root / "warm-up")) for task in tasks[:2]])

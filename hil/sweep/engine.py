@@ -1,29 +1,34 @@
 """Running a sweep on Ray, resumably, and writing what it found.
 
 `run_sweep(spec, base, out_dir, ...)`:
-1. plans every run (hil/sweep/plan.py) and reads results.csv in `out_dir`: the runs whose ids
-   it holds are done (a failed run too: it is a result) and are not run again;
-2. runs the rest as Ray tasks (`ray.init()` on this machine with `workers` CPUs, or joining the
+1. plans every run (hil/sweep/plan.py; a signal meanwhile stops it: `SweepInterrupted`, nothing
+   written);
+2. locks `out_dir` for this sweep alone (hil/sweep/lock.py: another sweep there is `SweepBusy`),
+   checks that it holds this sweep's results or none (hil/sweep/identity.py: another base
+   configuration, spec setting or code version is `SweepMismatch`, naming what differs) and
+   reads results.csv: the runs whose ids it holds are done (a failed run too: it is a result)
+   and are not run again;
+3. runs the rest as Ray tasks (`ray.init()` on this machine with `workers` CPUs, or joining the
    cluster at `address`), at most two per CPU in flight; each finished run's row is appended to
-   results.csv at once, with progress and an ETA on stderr. Ctrl-C cancels the runs in flight
-   (their rows are not written, so a rerun does them) and stops;
-3. checks the paper's relations at every point (hil/sweep/relations.py), writes relations.csv,
+   results.csv at once, with progress and an ETA on stderr;
+4. checks the paper's relations at every point (hil/sweep/relations.py), writes relations.csv,
    the maps (maps/*.png) and summary.json, and returns the fractions.
+Ctrl-C or SIGTERM at any moment after the plan (before Ray is up, while it starts, while the
+runs go, while it shuts down) stops the sweep without losing what finished: the runs in flight
+are cancelled (their rows are not written, so a rerun does them), Ray is shut down, and the
+findings and summary.json are written for the rows there are (hil/sweep/interrupts.py).
 Ray is an optional dependency (`pip install -e '.[sweep]'`); without it `RayMissing` says so.
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import logging
 import os
-import signal
 import socket
-import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,8 +36,11 @@ from typing import Any
 from hil.config import Config
 from hil.output.strict_json import dumps
 from hil.sweep.checks import checked_plan
+from hil.sweep.identity import claim
+from hil.sweep.interrupts import SweepSignals, sigint_held
+from hil.sweep.lock import locked
 from hil.sweep.maps import write_maps
-from hil.sweep.plan import resolved
+from hil.sweep.plan import distinct_runs, identity_of, resolved
 from hil.sweep.processes import adopt_orphans, descendants, shutdown_ray_started_here
 from hil.sweep.relations import PointRelation, RelationFraction, fractions, point_relations
 from hil.sweep.spec import Sampling, SweepSpec, Task
@@ -46,6 +54,11 @@ INSTALL_HINT = (
 )
 IN_FLIGHT_PER_CPU = 2
 CONNECT_TIMEOUT_S = 5.0
+POLL_S = 0.25  # how often the wait for a finished run looks at the signals
+
+
+class SweepInterrupted(RuntimeError):
+    """A signal came while the plan was being made: nothing was run or written."""
 
 
 class RayMissing(RuntimeError):
@@ -89,6 +102,7 @@ class SweepOutcome:
     done_now: int = 0
     failed: int = 0
     interrupted: bool = False
+    signal: str | None = None  # the first signal received during the sweep, if any
     wall_time_s: float = 0.0
     fractions: list[RelationFraction] = field(default_factory=list)
     maps: list[Path] = field(default_factory=list)
@@ -109,6 +123,7 @@ class SweepOutcome:
             "failed": self.failed,
             "complete": self.complete,
             "interrupted": self.interrupted,
+            "signal": self.signal,
             "wall_time_s": self.wall_time_s,
             "map_axes": list(spec.axes),
             "relations": [f.record() for f in self.fractions],
@@ -150,7 +165,8 @@ def _clock(seconds: float) -> str:
 
 def start_ray(workers: int | None, address: str | None) -> None:
     """Ray, unless already initialised: local with `workers` CPUs, or the cluster at
-    `address`."""
+    `address`. A terminal's Ctrl-C meanwhile waits for the start to end, and reaches only
+    this process, not Ray's processes started here (hil/sweep/interrupts.py)."""
     ray = import_ray()
     if ray.is_initialized():
         return
@@ -159,18 +175,9 @@ def start_ray(workers: int | None, address: str | None) -> None:
         check_reachable(address)
         ray.init(address=address, **quiet)
         return
-    # A terminal's Ctrl-C goes to the whole foreground process group, Ray's own processes
-    # included: the raylet would die on it and leave its agents behind. Started with SIGINT
-    # ignored (inherited through exec), they leave the signal to this process, which cancels
-    # the runs and shuts Ray down in order.
-    main_thread = threading.current_thread() is threading.main_thread()
     adopt_orphans()  # an agent whose raylet died anyway comes to us, to be ended at shutdown
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
-    try:
+    with sigint_held():
         ray.init(num_cpus=workers, include_dashboard=False, **quiet)
-    finally:
-        if main_thread:
-            signal.signal(signal.SIGINT, previous or signal.default_int_handler)
 
 
 def execute_on_ray(
@@ -179,36 +186,35 @@ def execute_on_ray(
     out_dir: Path,
     ray: Any,
     say: Callable[[str], None],
-) -> tuple[int, bool]:
-    """Run the tasks on Ray, appending each row when it is done; (rows written, interrupted)."""
+    signals: SweepSignals,
+) -> int:
+    """Run the tasks on Ray, appending each row when it is done, until they are done or a
+    signal comes (the runs in flight are then cancelled); the rows written."""
     remote = ray.remote(num_cpus=1, max_retries=0)(run_task)
     cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
     queue = deque(tasks)
     in_flight: dict[Any, Task] = {}
     progress = Progress(len(tasks), say)
     written = 0
-    try:
-        while queue or in_flight:
-            while queue and len(in_flight) < IN_FLIGHT_PER_CPU * cpus:
-                task = queue.popleft()
-                in_flight[remote.remote(task, str(out_dir))] = task
-            ready, _ = ray.wait(list(in_flight), num_returns=1)
-            for ref in ready:
-                task = in_flight.pop(ref)
-                try:
-                    row = ray.get(ref)
-                except ray.exceptions.RayError as exc:  # the worker died: a failed run
-                    row = task_row(task, FAILED, False, error=f"{type(exc).__name__}: {exc}"[:500])
-                if row["ending"] == Termination.INTERRUPTED.value:
-                    continue  # not finished: a rerun does it again
-                table.append(row)
-                written += 1
-                progress.tick(row, task.values)
-    except KeyboardInterrupt:
-        for ref in in_flight:
-            ray.cancel(ref, force=True)
-        return written, True
-    return written, False
+    while (queue or in_flight) and signals.reason is None:
+        while queue and len(in_flight) < IN_FLIGHT_PER_CPU * cpus:
+            task = queue.popleft()
+            in_flight[remote.remote(task, str(out_dir))] = task
+        ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=POLL_S)
+        for ref in ready:
+            task = in_flight.pop(ref)
+            try:
+                row = ray.get(ref)
+            except ray.exceptions.RayError as exc:  # the worker died: a failed run
+                row = task_row(task, FAILED, False, error=f"{type(exc).__name__}: {exc}"[:500])
+            if row["ending"] == Termination.INTERRUPTED.value:
+                continue  # not finished: a rerun does it again
+            table.append(row)
+            written += 1
+            progress.tick(row, task.values)
+    for ref in in_flight:
+        ray.cancel(ref, force=True)
+    return written
 
 
 def run_sweep(
@@ -226,54 +232,83 @@ def run_sweep(
     started = time.perf_counter()
     if max_runs is not None and max_runs < 0:
         raise ValueError(f"max_runs must be >= 0, got {max_runs}")
-    spec = resolved(spec, base)
-    tasks = checked_plan(spec, base)
-    out_dir = Path(out_dir)
-    table = ResultsTable(out_dir, header(spec.parameter_names, spec.experiments))
-    pending = [t for t in tasks if t.run_id not in table]
-    outcome = SweepOutcome(out_dir, len(tasks), len(tasks) - len(pending))
-    say(
-        f"hil sweep {spec.name}: {len(tasks)} runs ({len(spec.points())} points x "
-        f"{len(spec.experiments)} experiments x {len(spec.controllers)} controllers); "
-        f"{outcome.done_before} done before, {len(pending)} to run -> {out_dir}"
-    )
-    if max_runs is not None:
-        pending = pending[:max_runs]
-    if pending:
-        ray = import_ray()
-        started_here = not ray.is_initialized()
-        before = descendants(os.getpid())
-        try:
-            start_ray(workers, address)
-            with terminate_as_interrupt():  # after ray.init, which sets its own SIGTERM exit
-                done, interrupted = execute_on_ray(pending, table, out_dir, ray, say)
-            outcome.done_now, outcome.interrupted = done, interrupted
-        finally:  # also after Ctrl-C during ray.init: no Ray process left behind
-            if started_here and ray.is_initialized():
-                shutdown_ray_started_here(ray, before)
-    rows = [table.rows[t.run_id] for t in tasks if t.run_id in table]
-    outcome.failed = sum(1 for row in rows if row["ending"] == FAILED)
-    outcome.wall_time_s = time.perf_counter() - started
-    write_findings(spec, rows, outcome)
-    return outcome
-
-
-@contextlib.contextmanager
-def terminate_as_interrupt() -> Iterator[None]:
-    """SIGTERM stops the sweep as Ctrl-C does (the runs in flight cancelled, the rows kept, the
-    findings written, Ray shut down), instead of Ray's handler exiting on the spot."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(_signum: int, _frame: object) -> None:
-        raise KeyboardInterrupt("SIGTERM")
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    signals = SweepSignals()
+    signals.install()
     try:
-        yield
+        try:
+            with signals.raising():
+                spec = resolved(spec, base)
+                tasks = checked_plan(spec, base)
+                identity = identity_of(spec, base)
+        except KeyboardInterrupt:
+            raise SweepInterrupted(
+                f"interrupted ({signals.reason or 'SIGINT'}) while the plan was made: nothing "
+                f"was run, {out_dir} is as it was"
+            ) from None
+        out_dir = Path(out_dir)
+        with locked(out_dir):
+            claim(out_dir, identity, spec.name)
+            table = ResultsTable(out_dir, header(spec.parameter_names, spec.experiments))
+            runs = distinct_runs(tasks)
+            pending = [t for t in runs if t.run_id not in table]
+            outcome = SweepOutcome(out_dir, len(runs), len(runs) - len(pending))
+            shared = len(tasks) - len(runs)
+            say(
+                f"hil sweep {spec.name}: {len(runs)} runs ({len(spec.points())} points x "
+                f"{len(spec.experiments)} experiments x {len(spec.controllers)} controllers"
+                + (f", {shared} of them the same run as another: run once" if shared else "")
+                + f"); {outcome.done_before} done before, {len(pending)} to run -> {out_dir}"
+            )
+            if max_runs is not None:
+                pending = pending[:max_runs]
+            if pending and signals.reason is None:
+                outcome.done_now = _run_on_ray(pending, table, signals, workers, address, say)
+            outcome.signal = signals.reason
+            outcome.interrupted = signals.reason is not None
+            done = [table.rows[t.run_id] for t in runs if t.run_id in table]
+            outcome.failed = sum(1 for row in done if row["ending"] == FAILED)
+            outcome.wall_time_s = time.perf_counter() - started
+            write_findings(spec, point_rows(tasks, table), outcome)
+            return outcome
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signals.restore()
+
+
+def _run_on_ray(
+    pending: Sequence[Task],
+    table: ResultsTable,
+    signals: SweepSignals,
+    workers: int | None,
+    address: str | None,
+    say: Callable[[str], None],
+) -> int:
+    """Start Ray (unless it is up), run the pending tasks, shut down a Ray started here; the
+    rows written. A signal at any moment ends it with Ray shut down (module docstring)."""
+    ray = import_ray()
+    started_here = not ray.is_initialized()
+    before = descendants(os.getpid())
+    try:
+        with signals.while_ray_starts():
+            start_ray(workers, address)
+        if signals.reason is not None:
+            return 0
+        return execute_on_ray(pending, table, table.path.parent, ray, say, signals)
+    finally:  # also after a start cut short: no Ray process left behind
+        if started_here:
+            shutdown_ray_started_here(ray, before, hurry=lambda: signals.hurried)
+
+
+def point_rows(tasks: Sequence[Task], table: ResultsTable) -> list[dict[str, Any]]:
+    """The row of every (point, experiment, controller) whose run is done, as that point's: a
+    run two of them share was written once, with the first one's values (hil/sweep/plan.py); a
+    point drawn twice is one point."""
+    rows: dict[tuple[str, str, str], dict[str, Any]] = {}
+    for t in tasks:
+        key = (t.point_id, t.experiment, t.controller)
+        if t.run_id in table and key not in rows:
+            ours = {**t.values, "point_id": t.point_id, "controller": t.controller}
+            rows[key] = {**table.rows[t.run_id], **ours}
+    return list(rows.values())
 
 
 def write_findings(spec: SweepSpec, rows: list[dict[str, Any]], outcome: SweepOutcome) -> None:
@@ -290,8 +325,10 @@ def write_findings(spec: SweepSpec, rows: list[dict[str, Any]], outcome: SweepOu
             grid=spec.sampling is Sampling.GRID,
             title=spec.title,
         )
-    summary = outcome.record(spec)
-    (outcome.out_dir / "summary.json").write_text(dumps(summary, indent=2) + "\n")
+    summary = outcome.out_dir / "summary.json"
+    written = summary.with_suffix(".json.tmp")
+    written.write_text(dumps(outcome.record(spec), indent=2) + "\n")
+    os.replace(written, summary)  # never a half-written summary.json
 
 
 def _write_relations(

@@ -1,18 +1,28 @@
 """A sweep's plan (the spec is hil/sweep/spec.py): the configuration at each point, and the
-list of runs - one per (point, experiment, controller), each with an id hashed from everything
-that defines it, so that rerunning the same spec finds the runs already done."""
+list of runs - one per (point, experiment, controller), each with an id hashed from the run as
+it will be run (`run_identity`: the sweep's identity - the base configuration's content, the
+spec's settings for every run, the code's versions; hil/sweep/identity.py - the experiment, the
+controller with its reading of (25) resolved, and the configuration keys the point sets, less
+those this controller does not read), so that rerunning the same sweep finds the runs already
+done, a run of another configuration never passes for one of them, and two (point, controller)
+pairs that are one run share one id and are run once (a composition grid: a controller that
+names its reading runs the same at every composition; dob_integral_time_s counts only for the
+"accumulated-integral" reading; a Monte Carlo draw repeated)."""
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 from typing import Any
 
 from hil.config import Config
+from hil.sweep.identity import SweepIdentity, digest, sweep_identity
 from hil.sweep.ranges import SpecError, check_range
-from hil.sweep.spec import ModelFollows, SweepSpec, Task, Value
+from hil.sweep.spec import ModelFollows, SweepSpec, Task, Value, parse_controller
 from hil.wiring.emulation import plant_servo_noise
+
+COMPOSITION = "controller.composition"
+INTEGRAL_TIME = "controller.dob_integral_time_s"
+BOUNDED_READING = "accumulated-integral"  # the reading that reads dob_integral_time_s
 
 
 # --- the configuration at a point --------------------------------------------------------------
@@ -81,9 +91,17 @@ def config_at(base: Config, targets: dict[str, Value], model: ModelFollows) -> C
     return config
 
 
-def _digest(data: Any, length: int) -> str:
-    text = json.dumps(data, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:length]
+def with_base(spec: SweepSpec, config: Config) -> Config:
+    """The configuration with the spec's [base] changes applied (each validated)."""
+    for key, value in spec.base.items():
+        section, _, option = key.partition(".")
+        config = config.changed(section, option=f"[base] {key}", **{option: value})
+    return config
+
+
+def identity_of(spec: SweepSpec, base: Config) -> SweepIdentity:
+    """The identity of this sweep (hil/sweep/identity.py) on this base configuration."""
+    return sweep_identity(resolved(spec, base), with_base(spec, base))
 
 
 def plan(spec: SweepSpec, base: Config) -> list[Task]:
@@ -93,27 +111,22 @@ def plan(spec: SweepSpec, base: Config) -> list[Task]:
     worker. `hil.sweep.checks.checked_plan` sizes the plan before listing it and checks every
     point's configuration once: what `run_sweep` runs."""
     spec = resolved(spec, base)
-    for key, value in spec.base.items():
-        section, _, option = key.partition(".")
-        base = base.changed(section, option=f"[base] {key}", **{option: value})
+    base = with_base(spec, base)
+    sweep = sweep_identity(spec, base).digest
     record = base.record()
     tasks = []
     for values in spec.points():
-        point_id = _digest(values, 10)
+        point_id = digest(values, 10)
+        targets = targets_of(spec, values)
         for experiment in spec.experiments:
             for controller in spec.controllers:
-                identity = {
-                    "values": values, "experiment": experiment, "controller": controller,
-                    "setup": spec.setup, "model": spec.model, "seed": spec.seed,
-                    "duration_s": spec.duration_s, "base": spec.base,
-                    "targets": {p.name: p.targets for p in spec.parameters},
-                }  # fmt: skip
+                identity = run_identity(sweep, experiment, controller, targets, base)
                 tasks.append(
                     Task(
-                        run_id=_digest(identity, 16),
+                        run_id=digest(identity, 16),
                         point_id=point_id,
                         values=values,
-                        targets=targets_of(spec, values),
+                        targets=targets,
                         experiment=experiment,
                         controller=controller,
                         config_record=record,
@@ -127,9 +140,49 @@ def plan(spec: SweepSpec, base: Config) -> list[Task]:
     return tasks
 
 
+def run_identity(
+    sweep: str, experiment: str, controller: str, targets: dict[str, Value], base: Config
+) -> dict[str, Any]:
+    """What one run is (module docstring): two tasks with the same identity run the same.
+    `base` has [base] applied; `sweep` is the sweep's identity's digest."""
+    choice = parse_controller(controller)
+    composition = targets.get(COMPOSITION, base.controller.composition)
+    # only the LQR's composition (25) has a reading; pid and gc do not read it
+    reading = (choice.reading or str(composition)) if choice.kind.has_lqr else None
+    read = {
+        target: value
+        for target, value in targets.items()
+        if target != COMPOSITION and (target != INTEGRAL_TIME or reading == BOUNDED_READING)
+    }
+    return {
+        "sweep": sweep,
+        "experiment": experiment,
+        "controller": {"kind": str(choice.kind), "kdist": choice.kdist, "reading": reading},
+        "targets": read,
+    }
+
+
+def distinct_runs(tasks: list[Task]) -> list[Task]:
+    """The first task of each run id, in order: each run once."""
+    first: dict[str, Task] = {}
+    for task in tasks:
+        first.setdefault(task.run_id, task)
+    return list(first.values())
+
+
 def targets_of(spec: SweepSpec, values: dict[str, Value]) -> dict[str, Value]:
     """A point's values by configuration target."""
     return {target: values[p.name] for p in spec.parameters for target in p.targets}
 
 
-__all__ = ["config_at", "configured_value", "plan", "resolved", "targets_of"]
+__all__ = [
+    "config_at",
+    "configured_value",
+    "distinct_runs",
+    "identity_of",
+    "plan",
+    "resolved",
+    "run_identity",
+    "targets_of",
+    "with_base",
+]

@@ -23,6 +23,7 @@ import ctypes
 import os
 import signal
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -68,9 +69,15 @@ def _alive(processes: set[ProcessId]) -> set[ProcessId]:
     return {p for p in processes if (stat := _stat(p[0])) is not None and stat[1] == p[1]}
 
 
-def _wait_gone(processes: set[ProcessId], seconds: float) -> set[ProcessId]:
+def _never() -> bool:
+    return False
+
+
+def _wait_gone(
+    processes: set[ProcessId], seconds: float, hurry: Callable[[], bool] = _never
+) -> set[ProcessId]:
     deadline = time.monotonic() + seconds
-    while (left := _alive(processes)) and time.monotonic() < deadline:
+    while (left := _alive(processes)) and time.monotonic() < deadline and not hurry():
         time.sleep(0.1)
     return left
 
@@ -85,23 +92,28 @@ def adopt_orphans() -> bool:
         return False
 
 
-def end_processes(processes: set[ProcessId], grace_s: float = GRACE_S) -> set[ProcessId]:
+def end_processes(
+    processes: set[ProcessId], grace_s: float = GRACE_S, hurry: Callable[[], bool] = _never
+) -> set[ProcessId]:
     """Wait, then SIGTERM, then SIGKILL; returns the processes still alive at the end (an
-    ended process may stay a zombie until its parent reaps it; it is not alive)."""
-    left = _wait_gone(processes, grace_s)
+    ended process may stay a zombie until its parent reaps it; it is not alive). Once
+    `hurry()` is true the waits before SIGTERM and SIGKILL are cut short (a second Ctrl-C)."""
+    left = _wait_gone(processes, grace_s, hurry)
     for sig in (signal.SIGTERM, signal.SIGKILL):
         for pid, _ in left:
             with contextlib.suppress(OSError):  # gone meanwhile, or not ours to signal
                 os.kill(pid, sig)
-        left = _wait_gone(left, grace_s)
+        # SIGKILL is not refused: the wait after it is only for the kernel to end them
+        left = _wait_gone(left, grace_s, _never if sig == signal.SIGKILL else hurry)
     return left
 
 
 def shutdown_ray_started_here(
-    ray: Any, before: set[ProcessId], grace_s: float = GRACE_S
+    ray: Any, before: set[ProcessId], grace_s: float = GRACE_S, hurry: Callable[[], bool] = _never
 ) -> set[ProcessId]:
     """ray.shutdown(), then end every process below this one that was not there `before` Ray
-    started (`descendants(os.getpid())` taken then); returns any that would not end."""
+    started (`descendants(os.getpid())` taken then); returns any that would not end. Also
+    after a start cut short (Ray not initialised, some of its processes running)."""
     started = descendants(os.getpid()) - before
     ray.shutdown()
-    return end_processes(started, grace_s)
+    return end_processes(started, grace_s, hurry)

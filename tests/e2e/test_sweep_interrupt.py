@@ -117,3 +117,164 @@ def test_a_stopped_sweep_then_the_same_command_resumes_without_repeating(
     assert f"{len(before)} done before, {6 - len(before)} to run" in again.stderr
     assert all(r["ending"] == "completed" for r in after)
     assert not _new_ray_processes(ray_before)
+
+
+# `python -c WRAPPER_AT MOMENT SIGNAL ARGS...`: `hil ARGS...`, signalled (as WRAPPER does) at
+# MOMENT: "plan" as the plan is checked; "table" when results.csv has been read (what is
+# done), before Ray starts; "ray-start" while `ray.init` runs, once its raylet is up (a thread
+# watches for it).
+WRAPPER_AT = """
+import os, signal, sys, threading, time
+import ray
+import hil.sweep.engine as engine
+from hil.cli import main
+from hil.sweep.processes import descendants
+moment, signum = sys.argv[1], getattr(signal, sys.argv[2])
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as from a terminal (see WRAPPER)
+def send():
+    if signum == signal.SIGINT:
+        os.killpg(os.getpgid(0), signum)
+    else:
+        os.kill(os.getpid(), signum)
+if moment == "plan":
+    checked_plan = engine.checked_plan
+    def signal_then_plan(*args, **kwargs):
+        send()
+        return checked_plan(*args, **kwargs)
+    engine.checked_plan = signal_then_plan
+elif moment == "table":
+    table_init = engine.ResultsTable.__init__
+    def table_then_signal(self, *args, **kwargs):
+        table_init(self, *args, **kwargs)
+        send()
+    engine.ResultsTable.__init__ = table_then_signal
+else:
+    init = ray.init
+    def raylet_up():
+        return any(
+            b"raylet" in open(f"/proc/{pid}/cmdline", "rb").read()
+            for pid, _ in descendants(os.getpid())
+        )
+    def send_once_raylet_up():
+        deadline = time.monotonic() + 120
+        while not raylet_up() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        print("signal sent while Ray starts", file=sys.stderr, flush=True)
+        send()
+    def init_then_signal(*args, **kwargs):
+        threading.Thread(target=send_once_raylet_up, daemon=True).start()
+        result = init(*args, **kwargs)
+        print("ray.init returned", file=sys.stderr, flush=True)
+        return result
+    ray.init = init_then_signal
+sys.exit(main(sys.argv[3:]))
+"""
+
+
+def _sweep_at(tmp_path: Path, moment: str, signame: str) -> tuple[subprocess.Popen, Path]:
+    tmp_path.mkdir(exist_ok=True)
+    spec, out = tmp_path / "interrupt.toml", tmp_path / "out"
+    spec.write_text(SPEC)
+    args = ["sweep", str(spec), "--workers", "1", "--out", str(out)]
+    process = subprocess.Popen(
+        [sys.executable, "-c", WRAPPER_AT, moment, signame, *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    return process, out
+
+
+def _interrupted_at(tmp_path: Path, moment: str, signame: str) -> tuple[str, str, Path]:
+    """(stdout, stderr, out) of a sweep signalled at `moment`, which ended as interrupted."""
+    process, out = _sweep_at(tmp_path, moment, signame)
+    stdout, err = process.communicate(timeout=300)
+    assert process.returncode == 1, err  # an interruption, as elsewhere in the CLI
+    assert "Traceback" not in err, err
+    return stdout, err, out
+
+
+def _interrupted_summary(out: Path, signame: str) -> dict:
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["interrupted"], summary["signal"], summary["runs"]) == (True, signame, 6)
+    assert summary["finished"] == len(_rows(out)) < 6
+    return summary
+
+
+@pytest.mark.subprocess
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_before_ray_starts_ends_the_sweep(tmp_path: Path, signame: str) -> None:
+    # while the plan is made: it stops, nothing written
+    _, err, out = _interrupted_at(tmp_path / "plan", "plan", signame)
+    assert f"interrupted ({signame}) while the plan was made: nothing was run" in err, err
+    assert not out.exists()
+    # after the plan, results.csv read: Ray is not started, the summary is written
+    stdout, _, out = _interrupted_at(tmp_path / "table", "table", signame)
+    assert _interrupted_summary(out, signame)["finished"] == 0
+    assert f"incomplete ({signame}): rerun the same command to resume" in stdout
+
+
+@pytest.mark.slow
+@pytest.mark.ray
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_while_ray_starts_is_honoured_and_leaves_a_summary(
+    tmp_path: Path, signame: str
+) -> None:
+    ray_before = _ray_processes()
+    # exit 1: the SIGINT not dropped, the SIGTERM not Ray's own exit
+    _, err, out = _interrupted_at(tmp_path, "ray-start", signame)
+    assert "signal sent while Ray starts" in err, err
+    _interrupted_summary(out, signame)
+    assert not _new_ray_processes(ray_before)
+
+
+# `python -c HOLDING_WRAPPER GO ARGS...`: `hil ARGS...`, waiting after its first row until the
+# file GO exists (so that it is surely still running when a second sweep starts)
+HOLDING_WRAPPER = """
+import os, sys, time
+import hil.sweep.engine as engine
+from hil.cli import main
+go = sys.argv[1]
+tick = engine.Progress.tick
+def tick_then_hold(self, row, values):
+    tick(self, row, values)
+    deadline = time.monotonic() + 240
+    while self.done == 1 and not os.path.exists(go) and time.monotonic() < deadline:
+        time.sleep(0.05)
+engine.Progress.tick = tick_then_hold
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.ray
+@pytest.mark.timeout(600)
+def test_a_second_sweep_into_the_same_out_is_refused_while_the_first_runs(
+    tmp_path: Path,
+) -> None:
+    spec, out, go = tmp_path / "interrupt.toml", tmp_path / "out", tmp_path / "go"
+    spec.write_text(SPEC)
+    args = ["sweep", str(spec), "--workers", "1", "--out", str(out)]
+    first = subprocess.Popen(
+        [sys.executable, "-c", HOLDING_WRAPPER, str(go), *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 240
+        while not _rows(out) and first.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert _rows(out) and first.poll() is None  # the first is running, a row written
+        second = subprocess.run(
+            [sys.executable, "-m", "hil", *args], capture_output=True, text=True, timeout=240
+        )
+        go.touch()
+        _, first_err = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+    assert second.returncode == 2, second.stderr
+    assert f"in use by another sweep (pid {first.pid})" in second.stderr
+    assert first.returncode == 0, first_err
+    rows = _rows(out)
+    assert len(rows) == 6 and len({r["run_id"] for r in rows}) == 6  # each row once

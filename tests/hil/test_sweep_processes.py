@@ -56,6 +56,22 @@ def test_descendants_include_grandchildren_and_end_processes_kills_the_stubborn(
             child.wait()
 
 
+def test_a_second_signal_cuts_the_grace_short() -> None:
+    other = descendants(os.getpid())
+    child = subprocess.Popen([sys.executable, "-c", SPAWNER])
+    try:
+        found = _wait_for_descendants(2, other)
+        started = time.monotonic()
+        # a grace of a minute each, hurried from the start: SIGTERM, then SIGKILL, at once
+        assert end_processes(found, grace_s=60.0, hurry=lambda: True) == set()
+        assert time.monotonic() - started < 30.0  # not the 60 s + 60 s of the grace
+        child.wait(timeout=5)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+
+
 class _FakeRay:
     shut_down = False
 

@@ -99,3 +99,34 @@ def test_the_sweep_bench_measures_both_worker_counts_and_the_overhead() -> None:
     # the runs' own time inside a worker is part of the elapsed time, not more
     assert report["seconds_inside_run"]["ray_1"] <= report["seconds_per_run"]["ray_1"]
     assert "scaling 2 workers / 1" in sweep_report_text(report)
+
+
+# pid reads no composition, and the DOB names its reading: one run each at every point
+COMPOSITION = TINY.replace('"gc+lqr+dob@1"', '"gc+lqr+dob@1/accumulated-integral"').replace(
+    'name = "Kp"\ntargets = ["emulator.servo.position_gain_per_s"]\nvalues = [8.0, 12.0]',
+    'name = "reading"\ntargets = ["controller.composition"]\n'
+    'values = ["accumulated", "literal", "accumulated-integral"]',
+)
+
+
+@pytest.mark.slow
+@pytest.mark.ray
+@pytest.mark.timeout(600)
+def test_a_composition_grid_runs_a_run_shared_by_its_points_once(tmp_path: Path) -> None:
+    ray = pytest.importorskip("ray")
+    assert "controller.composition" in COMPOSITION and "Kp" not in COMPOSITION
+    try:
+        outcome = run_sweep(parse_spec(COMPOSITION, "composition"), CONFIG, tmp_path, workers=1)
+    finally:
+        ray.shutdown()
+    # 2 runs for 3 points x 2 controllers
+    assert (outcome.total, outcome.done_now, outcome.complete) == (2, 2, True)
+    with open(tmp_path / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 and len({r["run_id"] for r in rows}) == 2
+    with open(tmp_path / "relations.csv", newline="") as f:
+        relations = list(csv.DictReader(f))
+    assert {r["reading"] for r in relations} == {"accumulated", "literal", "accumulated-integral"}
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    stable = next(r for r in summary["relations"] if "stable after the push" in r["claim"])
+    assert stable["holds"] + stable["does_not_hold"] + stable["not_checked"] == 3  # per point
