@@ -186,7 +186,10 @@ class H54ServoParams:
         self, position_p_gain: int, velocity_p_gain: int, velocity_i_gain: int
     ) -> ServoCascade:
         """The cascade's SI gains at these register values (594, 588, 586): each gain scales
-        linearly with its register, the register's default mapping to this object's figure."""
+        linearly with its register, the register's default mapping to this object's figure.
+        ASSUMED: ROBOTIS do not publish how a gain register maps to a gain in SI (the e-Manual
+        gives the registers' ranges and initial values only). So DYROS-JET's lab registers, 96 /
+        500 / 0 (hil/data/dyros_jet_lab.toml), are Kpp 30 1/s, kv 98.4 N m s/rad, no integral."""
         position = self.position_gain_per_s * position_p_gain / self.default_position_gain_register
         velocity = (
             self.velocity_gain_nms_per_rad * velocity_p_gain / self.default_velocity_p_gain_register
