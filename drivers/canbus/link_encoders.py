@@ -76,8 +76,9 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
     waits of `open()` for a node's boot-up and Operational heartbeat go on past their
     deadline while that process works (drivers/peer_wait.py), and an SDO transfer whose
     answer did not come within `sdo_timeout_s` (0.3 s, canopen's) is asked for again while it
-    works; None (hardware): the deadline. `collect` keeps its timeout: a lock-step emulator has written a SYNC's TPDOs before it answers the sync read, which the
-    bus collects first (`links_after_actuators`), so there is nothing left to wait for.
+    works; None (hardware): the deadline. `collect` keeps its timeout: a lock-step emulator
+    has written a SYNC's TPDOs before it answers the sync read, which the bus collects first
+    (`links_after_actuators`), so there is nothing left to wait for.
     """
 
     def __init__(
