@@ -74,10 +74,11 @@ class LinkEncoderReader(NodeBringUp, FrameReceiver):
     Deadlines (`collect`'s timeout, open's waits) always use real time.
     patience: for nodes served by a process on this machine (an emulator in lock-step), the
     waits of `open()` for a node's boot-up and Operational heartbeat go on past their
-    deadline while that process works (drivers/peer_wait.py); None (hardware): the deadline.
-    canopen's SDO answers keep their `sdo_timeout_s` (0.3 s), and `collect` its timeout: a
-    lock-step emulator has written a SYNC's TPDOs before it answers the sync read, which the
-    bus collects first (`links_after_actuators`), so there is nothing left to wait for.
+    deadline while that process works (drivers/peer_wait.py), and an SDO transfer whose
+    answer did not come within `sdo_timeout_s` (0.3 s, canopen's) is asked for again while it
+    works; None (hardware): the deadline. `collect` keeps its timeout: a lock-step emulator
+    has written a SYNC's TPDOs before it answers the sync read, which the bus collects first
+    (`links_after_actuators`), so there is nothing left to wait for.
     """
 
     def __init__(

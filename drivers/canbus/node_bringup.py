@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import TypeVar
 
 import can
 import canopen
@@ -64,6 +65,8 @@ _STANDARD_ID_MASK = 0x7FF
 _HEARTBEAT_BASE = 0x700
 _TPDO_COB_ID_BASES = (0x180, 0x280, 0x380, 0x480)
 _NOTIFIER_POLL_S = 0.005
+
+T = TypeVar("T")
 
 
 class NodeBringUp:
@@ -304,29 +307,43 @@ class NodeBringUp:
         return canopen.sdo.SdoVariable(device.node.sdo, variable)
 
     def _sdo_read(self, device: SensorDevice, index: int, subindex: int, what: str) -> int:
-        with self._sdo_errors(device, f"reading {what}"):
-            return int(self._sdo_variable(device, index, subindex).raw)
-        raise AssertionError("unreachable")  # _sdo_errors always raises on failure
+        variable = self._sdo_variable(device, index, subindex)
+        return int(self._sdo_transfer(device, f"reading {what}", lambda: variable.raw))
 
     def _sdo_write(
         self, device: SensorDevice, index: int, subindex: int, value: int, what: str
     ) -> None:
-        with self._sdo_errors(device, f"writing {what}"):
-            self._sdo_variable(device, index, subindex).raw = value
+        variable = self._sdo_variable(device, index, subindex)
 
-    @contextlib.contextmanager
-    def _sdo_errors(self, device: SensorDevice, action: str) -> Iterator[None]:
-        try:
-            yield
-        except canopen.SdoAbortedError as error:
-            raise CanDeviceError(
-                f"{device.label} on {self.bus_description}: {action} refused: {error}"
-            ) from None
-        except canopen.SdoCommunicationError as error:
-            raise CanDeviceError(
-                f"{device.label} on {self.bus_description}: no SDO answer {action} within "
-                f"{self._sdo_timeout_s} s ({error})"
-            ) from None
+        def write() -> None:
+            variable.raw = value
+
+        self._sdo_transfer(device, f"writing {what}", write)
+
+    def _sdo_transfer(self, device: SensorDevice, action: str, transfer: Callable[[], T]) -> T:
+        """One SDO transfer. An answer that did not come within `sdo_timeout_s` is asked for
+        again while the process serving the node works (`_patience`, as the NMT waits): a
+        loaded machine delays a lock-step emulator's answer past canopen's timeout, and the
+        bring-up's expedited reads and writes are the same sent twice (a late answer to the
+        first is the same answer; canopen drops one left in its queue before a request, and one
+        that comes after is refused as another object's and asked for again)."""
+        patience = self._patience
+        if patience is not None:
+            patience.begin()
+        while True:
+            try:
+                return transfer()
+            except canopen.SdoAbortedError as error:
+                raise CanDeviceError(
+                    f"{device.label} on {self.bus_description}: {action} refused: {error}"
+                ) from None
+            except canopen.SdoCommunicationError as error:
+                if patience is not None and patience.extension_s() > 0.0:
+                    continue
+                raise CanDeviceError(
+                    f"{device.label} on {self.bus_description}: no SDO answer {action} within "
+                    f"{self._sdo_timeout_s} s ({error})"
+                ) from None
 
     def _device_index(self, node_id: int) -> int:
         for index, device in enumerate(self._devices):

@@ -10,6 +10,8 @@ ROBOTIS's MANIPULATOR-H has its own instances, hil/robots/manipulator_h/experime
     PushExperiment       a hold with a push at the tool (`World.tool_pushes`): the first peak
                          the push drives the joints to and how long they take to settle
     TrajectoryExperiment a joint-space trajectory (the cosine moves): how far the links lag it
+    ArmContactExperiment the tool driven into a block (arm_contact.py: the testbed contact's
+                         metrics)
 
 Metrics of the hold (over the last HOLD_WINDOW_S of the run, loop time):
     static_error_rad           the largest |link - reference| of any joint (its mean over the

@@ -22,14 +22,14 @@ contact force and no drift: None, with the reason under `unmeasured`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hil.experiments.base import Obstacle, Ramp, TestbedExperiment, World
+from hil.experiments.base import Experiment, Obstacle, Ramp, TestbedExperiment, World
 from hil.output.plots import (
     ComparisonRun,
     WorldMarks,
@@ -55,6 +55,16 @@ PAPER_PID_TRIP_AFTER_CONTACT_S = 1.5  # PID: "turned off after 1.5 s of contact"
 # "About 1.5 s" is read off a plot, and the real actuator's overload threshold is not published
 # (the emulator's is a parameter): a trip within +-50 % of 1.5 s counts as "about 1.5 s".
 TRIP_DELAY_TOLERANCE = 0.5
+
+
+CONTACT_COLUMNS = (
+    Column("contact_time_s", "contact at [s]", number(".3f")),
+    Column("peak_contact_force_n", "peak force [N]", number(".1f")),
+    Column("mean_contact_force_n", "mean force [N]", number(".1f")),
+    Column("overload_tripped", "overload trip", number("")),
+    Column("trip_time_after_contact_s", "trip after contact [s]", number(".2f")),
+    Column("force_drift_n_per_s", "force drift [N/s]", number(".2f")),
+)
 
 
 def contact_time_s(run: RunData) -> float | None:
@@ -83,34 +93,40 @@ def _drift(
     return float(np.polyfit(time[late], force[late], 1)[0])
 
 
+def contact_metrics(run: RunData, no_contact: Callable[[], str]) -> dict[str, Any]:
+    """The module docstring's metrics of a run on a block whose force sensor the log reads
+    (`contact_force_n`); `no_contact()` says why a run has no mean force (the experiment's)."""
+    force = run.columns["contact_force_n"]
+    torque_on = np.all([t > 0.5 for t in run.per_joint("torque_enabled")], axis=0)
+    touching = force > CONTACT_THRESHOLD_N
+    contact = contact_time_s(run)
+    trip = overload_trip_s(run)
+    in_contact = touching & torque_on
+    unmeasured: dict[str, str] = {}
+    if not in_contact.any():
+        unmeasured["mean_contact_force_n"] = no_contact()
+    drift = _drift(run.time_s, force, in_contact, contact)
+    if isinstance(drift, str):
+        unmeasured["force_drift_n_per_s"] = drift
+    metrics: dict[str, Any] = {
+        "contact_time_s": contact,
+        "peak_contact_force_n": float(np.nanmax(force)) if force.size else 0.0,
+        "mean_contact_force_n": (
+            float(np.nanmean(force[in_contact])) if in_contact.any() else None
+        ),
+        "overload_tripped": trip is not None,
+        "trip_time_after_contact_s": (
+            trip - contact if trip is not None and contact is not None else None
+        ),
+        "force_drift_n_per_s": None if isinstance(drift, str) else drift,
+    }
+    return {**metrics, UNMEASURED: unmeasured} if unmeasured else metrics
+
+
 @dataclass(frozen=True)
 class ContactExperiment(TestbedExperiment):
     def metrics(self, run: RunData) -> dict[str, Any]:
-        force = run.columns["contact_force_n"]
-        torque_on = np.all([t > 0.5 for t in run.per_joint("torque_enabled")], axis=0)
-        touching = force > CONTACT_THRESHOLD_N
-        contact = contact_time_s(run)
-        trip = overload_trip_s(run)
-        in_contact = touching & torque_on
-        unmeasured: dict[str, str] = {}
-        if not in_contact.any():
-            unmeasured["mean_contact_force_n"] = self._no_contact(run)
-        drift = _drift(run.time_s, force, in_contact, contact)
-        if isinstance(drift, str):
-            unmeasured["force_drift_n_per_s"] = drift
-        metrics: dict[str, Any] = {
-            "contact_time_s": contact,
-            "peak_contact_force_n": float(np.nanmax(force)) if force.size else 0.0,
-            "mean_contact_force_n": (
-                float(np.nanmean(force[in_contact])) if in_contact.any() else None
-            ),
-            "overload_tripped": trip is not None,
-            "trip_time_after_contact_s": (
-                trip - contact if trip is not None and contact is not None else None
-            ),
-            "force_drift_n_per_s": None if isinstance(drift, str) else drift,
-        }
-        return {**metrics, UNMEASURED: unmeasured} if unmeasured else metrics
+        return contact_metrics(run, lambda: self._no_contact(run))
 
     def _no_contact(self, run: RunData) -> str:
         """Why a run has no contact force: it ended before the reference reached the block, or
@@ -141,14 +157,7 @@ class ContactExperiment(TestbedExperiment):
 
     @property
     def report_columns(self) -> tuple[Column, ...]:
-        return (
-            Column("contact_time_s", "contact at [s]", number(".3f")),
-            Column("peak_contact_force_n", "peak force [N]", number(".1f")),
-            Column("mean_contact_force_n", "mean force [N]", number(".1f")),
-            Column("overload_tripped", "overload trip", number("")),
-            Column("trip_time_after_contact_s", "trip after contact [s]", number(".2f")),
-            Column("force_drift_n_per_s", "force drift [N/s]", number(".2f")),
-        )
+        return CONTACT_COLUMNS
 
     def comparison_figure(
         self, runs: Sequence[ComparisonRun], path: Path, setup: str
@@ -265,9 +274,14 @@ def contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
 
 # --- Fig. 5 -----------------------------------------------------------------------------------
 def plot_contact_comparison(
-    runs: Sequence[ComparisonRun], experiment: ContactExperiment, path: Path, setup: str = ""
+    runs: Sequence[ComparisonRun],
+    experiment: Experiment,
+    path: Path,
+    setup: str = "",
+    joint: int = 0,
 ) -> Path:
-    """Fig. 5: (a) desired and measured link angle, (b) contact force, all controllers."""
+    """Fig. 5: (a) desired and measured link angle of the `joint`-th joint, (b) contact force,
+    all controllers (X: the first overload of any joint)."""
     if not runs:
         raise ValueError("plot_contact_comparison needs at least one run")
     from matplotlib.figure import Figure
@@ -278,7 +292,7 @@ def plot_contact_comparison(
     first = runs[0].run
     angle_ax.plot(
         first.time_s,
-        first.signal("reference_rad", first.joint_names[0]),
+        first.signal("reference_rad", first.joint_names[joint]),
         "k-",
         lw=1.2,
         label="desired",
@@ -294,7 +308,7 @@ def plot_contact_comparison(
         )
     contacts: list[float] = []
     for entry in in_drawing_order(runs):
-        contact = _draw_contact_run(angle_ax, force_ax, entry)
+        contact = _draw_contact_run(angle_ax, force_ax, entry, joint)
         if contact is not None:
             contacts.append(contact)
     if contacts:
@@ -319,11 +333,12 @@ def plot_contact_comparison(
     return save_figure(figure, path)
 
 
-def _draw_contact_run(angle_ax: Any, force_ax: Any, entry: ComparisonRun) -> float | None:
+def _draw_contact_run(
+    angle_ax: Any, force_ax: Any, entry: ComparisonRun, joint: int
+) -> float | None:
     """One controller's lines, its contact (o) and overload (X); returns its contact time."""
     run, style = entry.run, entry.style
-    joint = run.joint_names[0]
-    angle = run.signal("link_angle_rad", joint)
+    angle = run.signal("link_angle_rad", run.joint_names[joint])
     force = run.columns["contact_force_n"]
     angle_ax.plot(run.time_s, angle, label=entry.label, **style.kwargs())
     force_ax.plot(run.time_s, force, label=entry.label, **style.kwargs())
@@ -333,7 +348,7 @@ def _draw_contact_run(angle_ax: Any, force_ax: Any, entry: ComparisonRun) -> flo
         i = int(np.searchsorted(run.time_s, contact))
         angle_ax.plot(contact, angle[i], "o", color=style.color, alpha=marker_alpha, ms=5)
         force_ax.plot(contact, force[i], "o", color=style.color, alpha=marker_alpha, ms=5)
-    trip = overload_time_s(run, joint)
+    trip = overload_trip_s(run)
     if trip is not None:
         # the last sample before the trip: where the run was when the protection acted
         i = max(int(np.searchsorted(run.time_s, trip)) - 1, 0)

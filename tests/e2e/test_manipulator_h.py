@@ -67,3 +67,23 @@ def test_a_lockstep_hold_deflects_each_gear_by_its_coupled_static_load(tmp_path:
     loaded = np.abs(load) > 0.1
     assert loaded.tolist() == [False, True, True, False, True, False]
     np.testing.assert_allclose(deflection[loaded], -load[loaded] / stiffness[loaded], rtol=0.05)
+
+
+@pytest.mark.slow
+def test_a_lockstep_contact_reads_the_block_s_force_sensor_and_pid_is_stopped(
+    tmp_path: Path,
+) -> None:
+    # pid drives the tool into the block past it (arm-contact): the block's CAN force sensor,
+    # brought up over SDO with the six link encoders, reads the press, and the current guard
+    # (on in the built-in configuration) stops the run before the actuator's own protection
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(
+            ["run", "arm-contact", "--robot", "manipulator-h", "--controller", "pid", "--json"]
+            + ["--duration", "4", "--no-plots", "--no-mcap", "--out", str(tmp_path)]
+        )
+    metrics = json.loads(out.getvalue().strip().splitlines()[-1])
+    assert code == 1, out.getvalue()
+    assert metrics["termination"] == "safety stop: current (back_off)"
+    assert 2.1 < metrics["contact_time_s"] < 2.4  # the elbow reaches the block near 0.2 rad
+    assert metrics["peak_contact_force_n"] > 30.0 and not metrics["overload_tripped"]

@@ -20,7 +20,7 @@ from hil.vocabulary import Robot
 COMPARISON = Comparison(
     name=None,
     directory="manipulator-h-comparison",
-    title="ROBOTIS MANIPULATOR-H: holding, a push at the tool, a joint-space trajectory",
+    title="ROBOTIS MANIPULATOR-H: holding, a push at the tool, a trajectory, contact",
     claims_source="Kim et al., ICRA 2018, Sec. III (predictions for this arm)",
     plan=lambda config, long_runs: [
         (experiment, choice)
