@@ -27,7 +27,6 @@ import enum
 import math
 from dataclasses import dataclass
 
-
 # The configuration's key of each figure ([emulator] plant), for messages.
 KEYS = {
     "model": "gearbox_friction_model",

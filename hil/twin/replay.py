@@ -76,21 +76,20 @@ def _play(bus: InProcessJointBus, run: RecordedRun, reading: Reading, ticks: int
     testbed = None
     motor_error = link_error = np.zeros(n)
     if reading is Reading.PLANT:
-        motor_error, link_error = (
-            np.array(e) for e in run_zero_errors(bus.config, n)
-        )
+        motor_error, link_error = (np.array(e) for e in run_zero_errors(bus.config, n))
     on = False
     for k in range(ticks):
-        sample = bus.read()
         if reading is Reading.DRIVERS:
+            sample = bus.read()
             out[0, k] = sample.motor_angle_rad
             out[1, k] = sample.link_angle_rad
             out[2, k] = sample.motor_current_a
             if force is not None:
                 force[k] = sample.extra.get(FORCE_SIGNAL, np.nan)
-        else:
+        else:  # the plant's state: the tick's SYNC without the sensors' readings
             testbed = bus.testbed
             assert testbed is not None
+            testbed.sync()
             joints = testbed.robot.joints  # the testbed's EmulatedJoint per joint
             out[0, k] = [j.plant.motor_angle_rad for j in joints]
             out[1, k] = [j.plant.link_angle_rad for j in joints]
