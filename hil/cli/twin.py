@@ -22,11 +22,16 @@ import argparse
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from hil.cli.exit_codes import ExitCode
 from hil.config import ConfigError, load_config
 from hil.output.rundir import timestamp
 from hil.output.strict_json import dumps
+
+if TYPE_CHECKING:
+    from hil.twin.fit import TwinFit
+    from hil.twin.runs import RecordedRun
 
 
 def add_twin(sub: argparse._SubParsersAction) -> None:
@@ -70,7 +75,7 @@ def cmd_twin(args: argparse.Namespace) -> int:
     return _fit(args, runs)
 
 
-def _fit(args: argparse.Namespace, runs: list) -> int:
+def _fit(args: argparse.Namespace, runs: list[RecordedRun]) -> int:
     from hil.twin.fit import CHANNELS, FitOptions, fit_twin, link_delay_s
     from hil.twin.toml_file import write_config
 
@@ -127,20 +132,20 @@ def _say(text: str) -> None:
     print(f"hil twin: {text}", file=sys.stderr, flush=True)
 
 
-def _estimates_table(fit: object) -> str:
+def _estimates_table(fit: TwinFit) -> str:
     lines = [f"{'figure':40s} {'value':>12s} {'95 % interval':>27s}  unit"]
-    for key, e in fit.estimates.items():  # type: ignore[attr-defined]
+    for key, e in fit.estimates.items():
         interval = f"[{e.low:.5g}, {e.high:.5g}]"
         note = f"  ({e.note})" if e.note else ""
         lines.append(f"{key:40s} {e.value:12.6g} {interval:>27s}  {e.unit}{note}")
     return "\n".join(lines)
 
 
-def _fit_json(fit: object, out: Path) -> dict:
+def _fit_json(fit: TwinFit, out: Path) -> dict[str, Any]:
     return {
         "twin": str(out),
-        "trusted": fit.trusted,  # type: ignore[attr-defined]
-        "friction_model": fit.friction.value,  # type: ignore[attr-defined]
+        "trusted": fit.trusted,
+        "friction_model": fit.friction.value,
         "figures": {
             k: {
                 "value": _num(e.value),
@@ -149,15 +154,12 @@ def _fit_json(fit: object, out: Path) -> dict:
                 "unit": e.unit,
                 "fitted": e.fitted,
             }
-            for k, e in fit.estimates.items()  # type: ignore[attr-defined]
+            for k, e in fit.estimates.items()
         },
-        "friction_scores": {
-            s.model.value: s.held_out_cost
-            for s in fit.scores  # type: ignore[attr-defined]
-        },
-        "held_out_rms": fit.held_out_rms,  # type: ignore[attr-defined]
-        "correlations": [list(c) for c in fit.correlations],  # type: ignore[attr-defined]
-        "problems": fit.problems,  # type: ignore[attr-defined]
+        "friction_scores": {s.model.value: s.held_out_cost for s in fit.scores},
+        "held_out_rms": fit.held_out_rms,
+        "correlations": [list(c) for c in fit.correlations],
+        "problems": fit.problems,
     }
 
 
@@ -165,7 +167,7 @@ def _num(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def _check(args: argparse.Namespace, runs: list) -> int:
+def _check(args: argparse.Namespace, runs: list[RecordedRun]) -> int:
     from hil.twin.check import check_twin, table
 
     try:

@@ -83,7 +83,9 @@ class FitOptions:
     workers: int = 1
     max_iterations: int = 20  # residual evaluations of the solver (each: a Jacobian too)
     friction_iterations: int = 8  # the same for each friction model's own figures
-    tolerance: float = 1e-5  # relative change of the cost / the figures that ends the fit
+    # relative change of the cost that ends the fit: a figure one standard deviation off its
+    # optimum costs ~1 / (the residuals' count) of the cost, so this is a fraction of that
+    tolerance: float = 1e-8
     confidence: float = 0.95
     interval_limit: float = 0.1
     correlation_limit: float = 0.98

@@ -5,8 +5,8 @@ lock-step order of the loop (read, torque on or off as the record says it was ov
 the goal written): what the emulator does with the very commands the robot got. Two readings:
 `Reading.DRIVERS`, what the drivers would read (quantised, with the sensors' noise: the
 in-process bus), and `Reading.PLANT`, the emulated plant's own state in the host's frame (the
-configuration's zero errors added; no quantisation, no noise), smooth in the emulator's figures:
-what the fit differentiates.
+configuration's zero errors added; the current the motor's torque over the torque constant; no
+quantisation, no noise), smooth in the emulator's figures: what the fit differentiates.
 
 Closed loop (`replay_closed_loop`): the recorded experiment run again with the recorded
 controller (rebuilt through the registry from meta.json: its spec, Kdist, reading of (25) and
@@ -73,10 +73,9 @@ def _play(bus: InProcessJointBus, run: RecordedRun, reading: Reading, ticks: int
     n = goals.shape[1]
     out = np.full((3, ticks, n), np.nan)
     force = np.full(ticks, np.nan) if run.force() is not None else None
-    testbed = None
     motor_error = link_error = np.zeros(n)
-    if reading is Reading.PLANT:
-        motor_error, link_error = (np.array(e) for e in run_zero_errors(bus.config, n))
+    if reading is Reading.PLANT:  # the host reads the physical angle plus the zero error
+        motor_error, link_error = (np.array(e) for e in bus.config.emulator.zero_errors(n))
     on = False
     for k in range(ticks):
         if reading is Reading.DRIVERS:
@@ -93,7 +92,8 @@ def _play(bus: InProcessJointBus, run: RecordedRun, reading: Reading, ticks: int
             joints = testbed.robot.joints  # the testbed's EmulatedJoint per joint
             out[0, k] = [j.plant.motor_angle_rad for j in joints]
             out[1, k] = [j.plant.link_angle_rad for j in joints]
-            out[2, k] = [j.bank.last_current_a[0] for j in joints]
+            # the motor's torque over the torque constant: the current without its noise
+            out[2, k] = [j.plant.motor_torque_nm / j.bank.torque_constant[0] for j in joints]
             out[0, k] += motor_error
             out[1, k] += link_error
             if force is not None:
@@ -107,10 +107,6 @@ def _play(bus: InProcessJointBus, run: RecordedRun, reading: Reading, ticks: int
         if on and np.isfinite(goals[k]).all():
             bus.write(goals[k])
     return Replayed(out[0], out[1], out[2], force)
-
-
-def run_zero_errors(config: Config, n: int) -> tuple[list[float], list[float]]:
-    return config.emulator.zero_errors(n)
 
 
 def replay_closed_loop(config: Config, run: RecordedRun, out_root: Path | None = None) -> Replayed:
