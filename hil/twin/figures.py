@@ -91,6 +91,7 @@ COMMON = (
     "link_mass_kg",
     "load_mass_kg",
     "motor_zero_error_rad",
+    "link_zero_error_rad",
 )
 FRICTION_FIGURES: dict[GearboxFriction, tuple[str, ...]] = {
     GearboxFriction.COULOMB_VISCOUS: (),

@@ -18,9 +18,10 @@
 4. Intervals (95 %) from the Jacobian at the optimum and the Newey-West sandwich over the
    time-correlated residuals (hil/identify/covariance.py), per run; correlations above
    `correlation_limit` and directions the data do not see (the Jacobian's rank) are named.
-   The link encoder's absolute zero (a common offset of both encoders) and a delay of the link
-   encoder are estimated at the optimum but not fitted: the emulator has no delay, and the
-   zero is seen only where gravity's torque changes with the angle.
+   The link encoder's zero (a common offset of both encoders) is seen only through gravity's
+   torque changing with the angle as the link swings: its interval says how well. A delay of
+   the link encoder is estimated at the optimum (`link_delay_s`), not fitted: the emulator has
+   no delay.
 
 A fit the data cannot carry is said (`TwinFit.problems`): a figure whose interval is wider
 than `interval_limit` of its value, a held-out link-angle residual above
@@ -381,9 +382,7 @@ def fit_twin(
             problems.append(
                 f"the rollout fit did not converge in {options.max_iterations} iterations"
             )
-        estimates, correlations = _intervals(
-            evaluator, problem, x, residual, jacobian, fit_rows, options, problems
-        )
+        estimates, correlations = _intervals(problem, x, residual, jacobian, options, problems)
         config = twin_config(base, values, friction)
         held = _held_out_rms(evaluator, Problem((), values, friction, held_rows, (1.0,) * 3))
     finally:
@@ -490,76 +489,49 @@ def _choose_friction(
 
 
 def _intervals(
-    evaluator: _Evaluator,
     problem: Problem,
     x: np.ndarray,
     residual: np.ndarray,
     jacobian: np.ndarray,
-    rows: tuple[tuple[int, int], ...],
     options: FitOptions,
     problems: list[str],
 ) -> tuple[dict[str, Estimate], list[tuple[str, str, float]]]:
-    """Intervals of the fitted figures, and of the link's zero (estimated, not fitted)."""
+    """Intervals of the fitted figures (and the link's I and m r), the correlations above the
+    limit, a Jacobian of too low a rank."""
     values = problem.values(x)
     z = scipy.stats.norm.ppf(0.5 + options.confidence / 2)
-    # the link's common zero: its column by one more replay (a step of 1 mrad)
-    extra = Problem(
-        (*problem.keys, "link_zero_error_rad"), values, problem.friction, rows, problem.weights
+    channels, n = len(CHANNELS), len(problem.keys)
+    offsets = np.cumsum([0, *(stop - first for first, stop in problem.rows)])
+    spans = list(zip(offsets[:-1], offsets[1:], strict=True))
+    covariance = sandwich_covariance(
+        [jacobian[channels * a : channels * b].reshape(-1, channels, n) for a, b in spans],
+        [residual[channels * a : channels * b].reshape(-1, channels) for a, b in spans],
     )
-    x_extra = np.zeros(len(extra.keys))
-    x_extra[-1] = 1.0
-    column = (evaluator.many(extra, [x_extra])[0] - residual) / 1.0
-    full = np.column_stack([jacobian, column])
-    sizes = [stop - first for first, stop in rows]
-    offsets = np.cumsum([0, *sizes])
-    channels = len(CHANNELS)
-    blocks_r = [
-        residual[channels * a : channels * b].reshape(-1, channels)
-        for a, b in zip(offsets[:-1], offsets[1:], strict=True)
-    ]
+    half = z * np.sqrt(np.maximum(np.diag(covariance), 0.0))
     estimates: dict[str, Estimate] = {}
-    correlations: list[tuple[str, str, float]] = []
-    for augmented in (False, True):
-        jac = full if augmented else jacobian
-        blocks_j = [
-            jac[channels * a : channels * b].reshape(-1, channels, jac.shape[1])
-            for a, b in zip(offsets[:-1], offsets[1:], strict=True)
-        ]
-        covariance = sandwich_covariance(blocks_j, blocks_r)
-        half = z * np.sqrt(np.maximum(np.diag(covariance), 0.0))
-        keys = extra.keys if augmented else problem.keys
-        chosen = keys[-1:] if augmented else keys
-        for key in chosen:
-            i = keys.index(key)
-            figure = FIGURES[key]
-            if figure.scale is Scale.LOG:
-                low, high = values[key] * math.exp(-half[i]), values[key] * math.exp(half[i])
-            else:
-                low = values[key] + figure.step * (-half[i])
-                high = values[key] + figure.step * half[i]
-            estimates[key] = Estimate(
-                values[key],
-                low,
-                high,
-                figure.unit,
-                fitted=not augmented,
-                note="not fitted: the twin keeps the configuration's zero" if augmented else "",
-            )
-        if not augmented:
-            estimates.update(_link_estimates(problem, values, covariance, z))
-            sd = np.sqrt(np.maximum(np.diag(covariance), 1e-300))
-            corr = covariance / np.outer(sd, sd)
-            for i in range(len(keys)):
-                for j in range(i + 1, len(keys)):
-                    if abs(corr[i, j]) > options.correlation_limit:
-                        correlations.append((keys[i], keys[j], float(corr[i, j])))
-            singular = np.linalg.svd(jac, compute_uv=False)
-            rank = int(np.count_nonzero(singular > singular[0] * 1e-8))
-            if rank < len(keys):
-                problems.append(
-                    f"the data see {rank} of the {len(keys)} fitted figures' directions: some "
-                    "combination of them is not determined (see the correlations)"
-                )
+    for i, key in enumerate(problem.keys):
+        figure = FIGURES[key]
+        if figure.scale is Scale.LOG:
+            low, high = values[key] * math.exp(-half[i]), values[key] * math.exp(half[i])
+        else:
+            low, high = values[key] - figure.step * half[i], values[key] + figure.step * half[i]
+        estimates[key] = Estimate(values[key], low, high, figure.unit)
+    estimates.update(_link_estimates(problem, values, covariance, z))
+    sd = np.sqrt(np.maximum(np.diag(covariance), 1e-300))
+    corr = covariance / np.outer(sd, sd)
+    correlations = [
+        (problem.keys[i], problem.keys[j], float(corr[i, j]))
+        for i in range(n)
+        for j in range(i + 1, n)
+        if abs(corr[i, j]) > options.correlation_limit
+    ]
+    singular = np.linalg.svd(jacobian, compute_uv=False)
+    rank = int(np.count_nonzero(singular > singular[0] * 1e-8))
+    if rank < n:
+        problems.append(
+            f"the data see {rank} of the {n} fitted figures' directions: some combination of "
+            "them is not determined (see the correlations)"
+        )
     _judge_intervals(problem.keys, estimates, options, problems)
     return estimates, correlations
 

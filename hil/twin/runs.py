@@ -97,12 +97,14 @@ class RecordedRun:
 
     @property
     def experiment_duration_s(self) -> float | None:
-        """How long its experiment ran: its rows in the `experiment` phase (None: none)."""
+        """How long its experiment was planned to run (`hil run --duration`): its rows in the
+        `experiment` phase plus the hold's (hil/loop/timeline.py: the experiment's time starts
+        with the hold). None: no such rows."""
         phase = self.run.columns.get("phase")
         if phase is None:
             return None
         rows = int(np.count_nonzero(np.asarray(phase) == "experiment"))
-        return rows * self.period_s if rows else None
+        return (rows + self.config.loop.stop_cycles) * self.period_s if rows else None
 
     @property
     def controller(self) -> dict[str, Any]:

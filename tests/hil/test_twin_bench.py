@@ -30,7 +30,8 @@ from hil.wiring.emulation import plant_servo_noise
 from sim_backend.friction import GearboxFriction
 from tests.support.bench_hardware import record, truth_config
 
-pytestmark = [pytest.mark.faults, pytest.mark.slow]
+# the fit replays its run some 300 times: ~5 min on 2 busy cores
+pytestmark = [pytest.mark.faults, pytest.mark.slow, pytest.mark.timeout(1800)]
 
 CONTROLLERS = (("pid", None), ("gc", None), ("gc+lqr", None), ("gc+lqr+dob", 0.5),
                ("gc+lqr+dob", 1.0))  # fmt: skip

@@ -44,10 +44,10 @@ TRUTH_EMULATOR = {
         "velocity_gain_nms_per_rad": 64.0,
         "velocity_integral_time_s": 9.0,
     },
-    # the motor's zero calibrated with the gear loaded (it took the gravity deflection); the
-    # link's zero is the level's (hil calibrate's reference pose): a chirp about horizontal
-    # cannot tell a common offset of both encoders (hil/twin/fit.py), so the bench has none
+    # the motor's zero calibrated with the gear loaded (it took the gravity deflection), the
+    # link's a level's reading off
     "motor_zero_error_rad": -2.5e-3,
+    "link_zero_error_rad": 3.0e-4,
 }
 
 
