@@ -186,9 +186,7 @@ def emulator_spec(
             motor_offset_rad=j.motor_offset_rad + j.motor_direction * motor_error,
             model=config.actuator_of(j),
         )
-        for j, motor_error, link_error in zip(
-            config.joints, motor_errors, link_errors, strict=True
-        )
+        for j, motor_error, link_error in zip(config.joints, motor_errors, link_errors, strict=True)
     )
     for fault in faults:
         if not 0 <= fault.joint < len(joints):
