@@ -27,6 +27,14 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from sim_backend.friction import (
+    NEUTRAL_LOAD_FRICTION_RATIO,
+    NEUTRAL_STRIBECK_FRICTION_NM,
+    NEUTRAL_STRIBECK_VELOCITY_RAD_S,
+    GearboxFriction,
+    GearboxFrictionParams,
+)
+
 GRAVITY_M_S2 = 9.81
 # The rod of TestbedPlantParams: a cylinder from the joint axis to the load's centre, the body
 # `link_inertia_kg_m2` and `gravity_moment_kg_m` describe (and the configuration's [model]
@@ -65,7 +73,12 @@ class TestbedPlantParams:
       stage. An assumption.
     Gearbox friction: the spec's no-load current (1.65 A at 33.1 rpm) times the torque constant
       (44.7 N m / 9.3 A = 4.81 N m/A) is 7.9 N m of friction at 3.47 rad/s. We split it into
-      Coulomb (frictionloss) and viscous parts, half each (an assumption).
+      Coulomb (frictionloss) and viscous parts, half each (an assumption). That is the default
+      model, "coulomb-viscous"; `gearbox_friction_model` chooses another law for the Coulomb
+      part (sim_backend/friction.py): "stribeck" adds `gearbox_stribeck_friction_nm` at rest,
+      fading over `gearbox_stribeck_velocity_rad_s`; "load-dependent" adds
+      `gearbox_load_friction_ratio` times the torque the gear transmits. A figure of a model not
+      chosen stays at its neutral value.
     Link and load: not published for the paper's testbed. We choose an aluminium rod of 0.7 m and
       0.8 kg with a 0.5 kg steel load at its tip: holding it horizontal takes 6.2 N m (14 % of the
       continuous torque), and the 0.7 m lever turns the actuator's 48 N m current limit into
@@ -77,6 +90,10 @@ class TestbedPlantParams:
     motor_reflected_inertia_kg_m2: float = 0.25
     gearbox_coulomb_friction_nm: float = 3.95
     gearbox_viscous_friction_nms_per_rad: float = 1.14
+    gearbox_friction_model: str = GearboxFriction.COULOMB_VISCOUS.value
+    gearbox_stribeck_friction_nm: float = NEUTRAL_STRIBECK_FRICTION_NM
+    gearbox_stribeck_velocity_rad_s: float = NEUTRAL_STRIBECK_VELOCITY_RAD_S
+    gearbox_load_friction_ratio: float = NEUTRAL_LOAD_FRICTION_RATIO
     link_length_m: float = 0.7
     link_mass_kg: float = 0.8
     load_mass_kg: float = 0.5
@@ -107,6 +124,18 @@ class TestbedPlantParams:
         for name, value in nonneg.items():
             if value < 0:
                 raise ValueError(f"plant parameter {name} must be >= 0, got {value}")
+        self.gearbox_friction  # noqa: B018 - the friction's own checks, at construction
+
+    @property
+    def gearbox_friction(self) -> GearboxFrictionParams:
+        """The gearbox's friction law and its figures (sim_backend/friction.py)."""
+        return GearboxFrictionParams(
+            model=self.gearbox_friction_model,  # a word: refused, named, if not a model
+            coulomb_nm=self.gearbox_coulomb_friction_nm,
+            stribeck_nm=self.gearbox_stribeck_friction_nm,
+            stribeck_velocity_rad_s=self.gearbox_stribeck_velocity_rad_s,
+            load_ratio=self.gearbox_load_friction_ratio,
+        )
 
     @property
     def link_inertia_kg_m2(self) -> float:
@@ -220,6 +249,8 @@ class TestbedPlant:
         self._torque_limit_nm: float | None = None  # as last written to MuJoCo
         self._load_force_applied = True  # xfrc_applied of the load may hold a push
         self._brake_applied = True  # qfrc_applied of the motor may hold a brake's force
+        # a friction law other than the constant Coulomb bound: rewritten before every step
+        self._friction = params.gearbox_friction if params.gearbox_friction.varies else None
         self.settle_statically()
 
     # --- state -------------------------------------------------------------------------------
@@ -247,6 +278,15 @@ class TestbedPlant:
     @property
     def link_velocity_rad_s(self) -> float:
         return float(self.data.qvel[self._motor_dof] + self.data.qvel[self._gear_dof])
+
+    @property
+    def gear_torque_nm(self) -> float:
+        """The torque the gear carries from the rotor to the link: K deflection + D its rate."""
+        p, data = self.params, self.data
+        return float(
+            p.gear_stiffness_nm_per_rad * data.qpos[self._gear_qpos]
+            + p.gear_damping_nms_per_rad * data.qvel[self._gear_dof]
+        )
 
     @property
     def motor_torque_nm(self) -> float:
@@ -314,6 +354,10 @@ class TestbedPlant:
         elif self._brake_applied:
             data.qfrc_applied[self._motor_dof] = 0.0
             self._brake_applied = False
+        if self._friction is not None:
+            self.model.dof_frictionloss[self._motor_dof] = self._friction.loss_nm(
+                float(data.qvel[self._motor_dof]), self.gear_torque_nm
+            )
         mujoco.mj_step(self.model, data)
 
     def settle_statically(self) -> None:

@@ -11,6 +11,8 @@
     hil calibrate [--config FILE] [--attach JSON] [--seconds S] [--pose [NAME=]RAD] [--write]
     hil identify LOG_DIR... [--json] [--config FILE] [--figure PATH]
     hil compare RUN_DIR RUN_DIR... [--out DIR]   runs of one experiment side by side
+    hil twin RUN_DIR... [--out twin.toml]      the emulator fitted to recorded runs
+    hil twin --check TWIN RUN_DIR... [--out DIR]   runs replayed on the twin, the residual
     hil sweep SPEC [--address ADDR] [--workers N] [--out DIR] [--list] [--json]
     hil bench bus|loop|soak|sweep [--json]
     hil config                 print the sample configuration file
@@ -128,6 +130,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         from hil.cli.identify import cmd_identify
 
         return cmd_identify(args)
+    if args.command == "twin":
+        from hil.cli.twin import cmd_twin
+
+        return cmd_twin(args)
     if args.command == "compare":
         from hil.cli.compare import cmd_compare
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import hil
 from controller import COMPOSITION_READINGS, CONTROLLER_NAMES, GC_COMPLIANCES
+from hil.cli.twin import add_twin
 from hil.cli.views import add_view_commands
 from hil.robots import EXPERIMENTS, NAMED_COMPARISONS, PROFILES
 
@@ -266,6 +267,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_identify(sub)
     _add_compare(sub)
+    add_twin(sub)  # hil twin (hil/cli/twin.py)
     _add_sweep(sub)
     add_view_commands(sub)  # hil export, hil render
 

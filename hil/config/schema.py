@@ -35,6 +35,7 @@ from hil.config.section import Section
 from hil.vocabulary import EmulatorClock, Reaction, SafetyCause
 
 Direction = Literal[1, -1]
+ZeroError = Annotated[float, Field(ge=-0.1, le=0.1)]
 ForceOffset = Annotated[float, Field(ge=-1.0e4, le=1.0e4)]
 TorqueOffset = Annotated[float, Field(ge=-1.0e3, le=1.0e3)]
 # The choices the controller package defines (one definition each, in controller/).
@@ -268,6 +269,26 @@ class EmulatorSection(Section):
     # The emulated USB-serial adapter's latency timer in realtime mode (None: the chain's
     # `latency_timer_ms`, as if set so; 16 rehearses an FTDI adapter left at its default).
     usb_latency_timer_ms: float | None = Field(None, ge=0, le=255)
+    # How far the emulated devices' zeros are from the [[joint]] offsets [rad]: what the host
+    # reads of a robot whose calibration is off (`hil twin` fits them): one figure for every
+    # joint or one per [[joint]]; within 0.1 rad (the start gate refuses a link and motor that
+    # disagree by more than [safety] zero_offset_margin_rad at rest)
+    motor_zero_error_rad: ZeroError | list[ZeroError] = 0.0
+    link_zero_error_rad: ZeroError | list[ZeroError] = 0.0
+
+    def zero_errors(self, n_joints: int) -> tuple[list[float], list[float]]:
+        """(motor, link) zero errors of each of n joints; ValueError if a list has another
+        length."""
+        out = []
+        for key in ("motor_zero_error_rad", "link_zero_error_rad"):
+            value = getattr(self, key)
+            values = [float(v) for v in value] if isinstance(value, list) else [value] * n_joints
+            if len(values) != n_joints:
+                raise ValueError(
+                    f"[emulator] {key}: {len(values)} figures for {n_joints} [[joint]] tables"
+                )
+            out.append(values)
+        return out[0], out[1]
 
     @field_validator("plant", "servo", "sensor_noise")
     @classmethod

@@ -156,19 +156,25 @@ def emulator_spec(
     if experiment is not None:
         start = np.broadcast_to(experiment.reference(0.0), (len(config.joints),))
     plant, servo, noise = plant_servo_noise(config, start)
+    try:
+        motor_errors, link_errors = config.emulator.zero_errors(len(config.joints))
+    except ValueError as exc:
+        raise ConfigError(f"{config.source}: {exc}") from exc
+    # a zero error e in the joint frame is the device's offset moved by direction x e: the host,
+    # undoing the [[joint]] offset, then reads the physical angle plus e
     joints = tuple(
         EmulatedJointSpec(
             dxl_id=j.dynamixel_id,
             encoder_node_id=j.encoder_node_id,
             encoder_counts_per_rev=encoder_counts_per_rev(j),
             encoder_direction=j.encoder_direction,
-            encoder_offset_rad=j.encoder_offset_rad,
+            encoder_offset_rad=j.encoder_offset_rad + j.encoder_direction * link_error,
             motor_direction=j.motor_direction,
-            motor_offset_rad=j.motor_offset_rad,
+            motor_offset_rad=j.motor_offset_rad + j.motor_direction * motor_error,
             model=config.actuator_of(j),
             chain=chains.index(config.chain_of(j)),
         )
-        for j in config.joints
+        for j, motor_error, link_error in zip(config.joints, motor_errors, link_errors, strict=True)
     )
     for fault in faults:
         if not 0 <= fault.joint < len(joints):

@@ -89,6 +89,16 @@ HIL_LAYERS = {
         "hil.loop",
         "hil.session",
     },
+    "hil.twin": {
+        "hil.vocabulary",
+        "hil.controllers",
+        "hil.config",
+        "hil.output",
+        "hil.experiments",
+        "hil.wiring",
+        "hil.identify",
+        "hil.session",
+    },
     "hil.api": {
         "hil.vocabulary",
         "hil.controllers",
@@ -117,6 +127,7 @@ HIL_LAYERS = {
         "hil.identify",
         "hil.bringup",
         "hil.sweep",
+        "hil.twin",
         "hil.render",
     },
 }

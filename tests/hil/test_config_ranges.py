@@ -145,7 +145,14 @@ PARTS = {
     "servo": (H54ServoParams,),
     "sensor_noise": (SensorNoise,),
 }
-WORDS_AND_STRUCTURES = {"obstacle", "servo", "contact", "com_offset_link", "friction_cone"}
+WORDS_AND_STRUCTURES = {
+    "obstacle",
+    "servo",
+    "contact",
+    "com_offset_link",
+    "friction_cone",
+    "gearbox_friction_model",
+}
 
 
 def _numbers_of(cls: type) -> list[str]:
