@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 
 from hil.config import Config
+from hil.vocabulary import Robot
 from hil.wiring.emulation import plant_servo_noise
 from sim_backend.friction import GearboxFriction
 from sim_backend.plant import ROD_RADIUS_M, TestbedPlantParams
@@ -107,10 +108,10 @@ SERVO_REGISTERS = {
 
 def single_joint(config: Config) -> None:
     """The twin fits the testbed's plant, one for all its joints: one joint, then."""
-    if config.model.robot != "single_link" or len(config.joints) != 1:
+    if config.model.robot != Robot.TESTBED or len(config.joints) != 1:
         raise ValueError(
             "hil twin fits the 1-DoF testbed's joint (one [[joint]], [model] robot = "
-            f"'single_link'); this configuration has {len(config.joints)} joints of "
+            f"'{Robot.TESTBED}'); this configuration has {len(config.joints)} joints of "
             f"{config.model.robot!r}"
         )
 

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from hil.config import Config, ConfigError, config_from_record
-from hil.experiments import Experiment, get_experiment
+from hil.experiments import Experiment
 from hil.output.rundir import RunData, load_run
+from hil.robots import get_experiment
 
 # The per-joint signals a replay compares (the log's columns), with their SI unit and the
 # factor to the unit the report gives.

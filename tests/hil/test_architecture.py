@@ -97,6 +97,7 @@ HIL_LAYERS = {
         "hil.experiments",
         "hil.wiring",
         "hil.identify",
+        "hil.robots",
         "hil.session",
     },
     "hil.api": {

@@ -397,7 +397,7 @@ def test_the_report_lists_only_the_files_a_run_has(
             (out_dir / "summary.json").write_text("{}")
         ending = RunEnding(Termination.ERROR, "the worker process died")
         entries.append(RunEntry("impact", results[0].choice, RunResult(out_dir, ending, {})))
-    report = write_comparison_report(tmp_path, entries, "synthetic setup", 1.0)
+    report = write_comparison_report(tmp_path, entries, "synthetic setup", 1.0, TESTBED)
     lines = report.markdown_path.read_text().splitlines()
     (killed,) = [line for line in lines if "`killed-run/`" in line]
     assert "(log.csv, events.jsonl)" in killed and "no summary.json" in killed, killed

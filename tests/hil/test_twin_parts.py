@@ -15,7 +15,7 @@ import pytest
 
 from hil.config import load_config, parse_config
 from hil.controllers.choice import choose
-from hil.experiments import get_experiment
+from hil.robots import get_experiment
 from hil.session.session import Session, Setup
 from hil.twin.figures import FIGURES, figures_of, link_figures, twin_config
 from hil.twin.fit import Estimate, FitOptions, _judge_data, _judge_intervals

@@ -18,8 +18,9 @@ from unittest import mock
 
 from hil.config import Config
 from hil.controllers.choice import choose
-from hil.experiments import Experiment, get_experiment
+from hil.experiments import Experiment
 from hil.output.records import RunResult
+from hil.robots import get_experiment
 from hil.session import session as session_module
 from hil.session.session import ConnectionOverrides, Session, Setup
 from hil.wiring.emulation import EmbeddedEmulator, emulator_spec
