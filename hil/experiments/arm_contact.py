@@ -25,7 +25,9 @@ from hil.experiments.contact import (
     CONTACT_COLUMNS,
     contact_metrics,
     contact_time_s,
+    no_contact_reason,
     plot_contact_comparison,
+    presses_less_than_pid,
 )
 from hil.output.plots import ComparisonRun, WorldMarks
 from hil.output.records import RunEntry
@@ -47,12 +49,7 @@ class ArmContactExperiment(JointPoseExperiment):
     def _no_contact(self, run: RunData) -> str:
         end_s = float(run.time_s[-1]) - run.experiment_start_s if run.time_s.size else 0.0
         ramp_end = max((m.start_s + m.duration_s for m in self.moves), default=0.0)
-        if end_s < ramp_end:
-            return (
-                f"no contact: the run ends {end_s:.2f} s into the experiment, before the "
-                f"reference's move ends ({ramp_end:.2f} s)"
-            )
-        return "no contact with torque on during the run"
+        return no_contact_reason(end_s, ramp_end, "the reference's move ends")
 
     def marks(self, run: RunData) -> WorldMarks:
         marks = super().marks(run)
@@ -117,11 +114,6 @@ def arm_contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relatio
             stopped = _stopped_by(entry)
             return stopped is None, f"mean {mean:.1f} N, " + (stopped or "no trip, no stop")
 
-        def softer(entry: RunEntry = entry, label: str = label) -> tuple[bool, str]:
-            ours = metric(entry, "peak_contact_force_n", label)
-            theirs = metric(pid, "peak_contact_force_n", "pid")
-            return ours < theirs, f"peak {ours:.1f} N vs {theirs:.1f} N"
-
         relations.append(
             check(
                 exp,
@@ -132,12 +124,8 @@ def arm_contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relatio
             )
         )
         relations.append(
-            check(
-                exp,
-                f"{label} presses on the block less than pid",
-                "testbed: 20-40 N vs >= 70 N",
-                softer,
-                "a prediction for this robot (peak force)",
+            presses_less_than_pid(
+                exp, entry, pid, label, "testbed: 20-40 N vs >= 70 N", "a prediction for this robot"
             )
         )
     return relations

@@ -93,6 +93,17 @@ def _drift(
     return float(np.polyfit(time[late], force[late], 1)[0])
 
 
+def no_contact_reason(end_s: float, due_s: float | None, due: str) -> str:
+    """Why a run has no contact force: it ended (`end_s`, experiment time) before what makes
+    the contact happens (`due`, at `due_s`; None: unknown), or it never touched with torque on."""
+    if due_s is not None and end_s < due_s:
+        return (
+            f"no contact: the run ends {end_s:.2f} s into the experiment, before {due} "
+            f"({due_s:.2f} s)"
+        )
+    return "no contact with torque on during the run"
+
+
 def contact_metrics(run: RunData, no_contact: Callable[[], str]) -> dict[str, Any]:
     """The module docstring's metrics of a run on a block whose force sensor the log reads
     (`contact_force_n`); `no_contact()` says why a run has no mean force (the experiment's)."""
@@ -138,12 +149,7 @@ class ContactExperiment(TestbedExperiment):
             times = np.arange(0.0, self.duration_s, 0.005)
             below = [t for t in times if self.reference(t) <= obstacle.contact_angle_rad]
             reach = below[0] if below else None
-        if reach is not None and end_s < reach:
-            return (
-                f"no contact: the run ends {end_s:.2f} s into the experiment, before the "
-                f"reference reaches the block ({reach:.2f} s)"
-            )
-        return "no contact with torque on during the run"
+        return no_contact_reason(end_s, reach, "the reference reaches the block")
 
     def marks(self, run: RunData) -> WorldMarks:
         marks = super().marks(run)
@@ -191,6 +197,19 @@ def _dob_kdists(entries: Sequence[RunEntry], experiment: str) -> list[float]:
     )
 
 
+def presses_less_than_pid(
+    exp: str, run: RunEntry | None, pid: RunEntry | None, label: str, paper: str, note: str = ""
+) -> Relation:
+    """The claim that the `label` run's peak force on the block is below pid's."""
+
+    def lower() -> tuple[bool, str]:
+        ours = metric(run, "peak_contact_force_n", label)
+        theirs = metric(pid, "peak_contact_force_n", "pid")
+        return ours < theirs, f"peak {ours:.1f} N vs {theirs:.1f} N"
+
+    return check(exp, f"{label} presses on the block less than pid", paper, lower, note)
+
+
 def contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
     """Every claim of Sec. IV-B about the contact experiment."""
     pid = find(entries, exp, ControllerKind.PID)
@@ -220,17 +239,9 @@ def contact_relations(exp: str, entries: Sequence[RunEntry]) -> list[Relation]:
             )
         )
 
-        def lower_than_pid(dob: RunEntry | None = dob, label: str = label) -> tuple[bool, str]:
-            ours_dob = metric(dob, "peak_contact_force_n", label)
-            ours_pid = metric(pid, "peak_contact_force_n", "pid")
-            return ours_dob < ours_pid, f"peak {ours_dob:.1f} N vs {ours_pid:.1f} N"
-
         relations.append(
-            check(
-                exp,
-                f"{label} presses on the block less than pid",
-                f"{low:g}-{high:g} N vs >= {PAPER_PID_CONTACT_FORCE_N:g} N",
-                lower_than_pid,
+            presses_less_than_pid(
+                exp, dob, pid, label, f"{low:g}-{high:g} N vs >= {PAPER_PID_CONTACT_FORCE_N:g} N"
             )
         )
 

@@ -6,7 +6,6 @@ delays a lock-step emulator's SDO answer past canopen's 0.3 s, which aborted a r
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 
 import can
 import pytest
@@ -42,30 +41,26 @@ class _Working:
         return PeerLook(runnable=True, cpu_s=0.0, state="running")
 
 
-@pytest.fixture
-def rigs() -> Iterator[list[Rig]]:
-    made: list[Rig] = []
-    yield made
-    for rig in made:
-        rig.close()
-
-
-def _rig(rigs: list[Rig], **kwargs) -> tuple[Rig, _LateFirstAnswer]:
+def _rig(**kwargs) -> tuple[Rig, _LateFirstAnswer]:
     node = _LateFirstAnswer(7, lambda: 12.5)
-    rig = Rig([node], [], force_sensor=ForceSensorConfig(7), **kwargs)
-    rigs.append(rig)
-    return rig, node
+    return Rig([node], [], force_sensor=ForceSensorConfig(7), **kwargs), node
 
 
-def test_a_late_sdo_answer_from_a_working_emulator_is_waited_for(rigs) -> None:
-    rig, node = _rig(rigs, patience=PeerWait(_Working()))
-    rig.open()
+def test_a_late_sdo_answer_from_a_working_emulator_is_waited_for() -> None:
+    rig, node = _rig(patience=PeerWait(_Working()))
+    try:
+        rig.open()
+        reading = rig.tick()
+    finally:
+        rig.close()
     assert not node.late  # the late answer happened
-    reading = rig.tick()
     assert reading.force.valid and reading.force.force_n == pytest.approx(12.5, abs=1e-3)
 
 
-def test_without_patience_a_late_sdo_answer_fails_open_naming_the_node(rigs) -> None:
-    rig, _ = _rig(rigs)
-    with pytest.raises(CanDeviceError, match="no SDO answer reading device type 0x1000 within"):
-        rig.open()
+def test_without_patience_a_late_sdo_answer_fails_open_naming_the_node() -> None:
+    rig, _ = _rig()
+    try:
+        with pytest.raises(CanDeviceError, match="no SDO answer reading device type 0x1000 within"):
+            rig.open()
+    finally:
+        rig.close()
