@@ -62,9 +62,13 @@ class HumanoidSpec:
 
     urdf_text: the robot description (the same the host's model reads).
     ft_sensor_node_ids: the left and right foot's force/torque node IDs (0: none).
-    initial_leg_angles_rad: the posture the robot is placed in, standing, at power-on.
+    initial_leg_angles_rad: the posture the robot is placed in, standing, at power-on (or, when
+        suspended, the posture it hangs in at power-on).
     truth: RobotTruthParams overrides (plain values; the H54 servo comes from the spec's servo).
     floor_boxes: rigid boxes on the floor (objects the robot may step on), none by default.
+    suspended: the robot hung by its pelvis from a gantry (to identify the legs, each free):
+        the pelvis fixed in the world at a height where the feet clear the floor
+        (sim_backend.humanoid.mjcf.SUSPENSION_HEIGHT_M), support_feet unused.
     """
 
     urdf_text: str
@@ -73,6 +77,7 @@ class HumanoidSpec:
     support_feet: tuple[int, ...] = (0, 1)
     truth: Mapping[str, Any] = field(default_factory=dict)
     floor_boxes: tuple[FloorBox, ...] = ()
+    suspended: bool = False
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,7 @@ def spec_from_json(text: str) -> EmulatorSpec:
             support_feet=tuple(humanoid["support_feet"]),
             truth=humanoid["truth"],
             floor_boxes=tuple(FloorBox(**box) for box in humanoid.get("floor_boxes", ())),
+            suspended=bool(humanoid.get("suspended", False)),
         )
         if humanoid
         else None,

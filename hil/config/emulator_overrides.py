@@ -67,6 +67,10 @@ PLANT: Mapping[str, Range] = {
     "com_offset_m": (-0.5, 0.5, "a centre-of-mass shift within the torso's half-metre"),
     "upper_body_angles_rad": _of(Angle, "within half a turn"),
     "position_gain_registers": REGISTER,
+    # per joint, the same figures as [emulator] servo's (gearbox_friction_model is a word)
+    "position_gain_per_s": _of(ServoGain),
+    "velocity_gain_nms_per_rad": _of(VelocityGain),
+    "velocity_integral_time_s": _of(IntegralTime),
     "contact.friction": (0.0, 10.0, "Coulomb friction from ice to glue"),
     "contact.time_constant_s": (2.0e-3, 1.0, "MuJoCo's solref: twice the 1 ms step at least"),
     "contact.damping_ratio": (0.1, 10.0, "MuJoCo's solref damping ratio"),

@@ -114,8 +114,13 @@ class ForceTorqueSensorSection(Section):
     can: str | None = None  # the channel it is on (None: the only one)
     # readings at zero load: within +-10 kN and +-1 kN m (a humanoid foot's six-axis sensor is
     # rated for some kN; DYROS-JET weighs ~500 N)
-    force_offset_n: tuple[ForceOffset, ForceOffset, ForceOffset] = (0.0, 0.0, 0.0)
-    torque_offset_nm: tuple[TorqueOffset, TorqueOffset, TorqueOffset] = (0.0, 0.0, 0.0)
+    # (not strict: TOML and meta.json give an array, a list in Python)
+    force_offset_n: tuple[ForceOffset, ForceOffset, ForceOffset] = Field(
+        (0.0, 0.0, 0.0), strict=False
+    )
+    torque_offset_nm: tuple[TorqueOffset, TorqueOffset, TorqueOffset] = Field(
+        (0.0, 0.0, 0.0), strict=False
+    )
 
 
 class JointSection(Section):

@@ -10,6 +10,8 @@
     walk-slow     DYROS-JET walks, 0.8 s single / 3.2 s double support (Fig. 7(a))
     walk-dynamic  the same at 0.8 s / 0.3 s (Fig. 7(b))
     step-on-object  the dynamic walk over a box the plan does not know (Fig. 8)
+    suspended-chirp DYROS-JET hung by its pelvis, each leg joint chirped in turn, open loop:
+                  the log `hil twin` fits the legs from
 
 Each robot's profile (hil/robots/<name>/) lists the experiments that run on it; the registry,
 `hil.robots.EXPERIMENTS` and `hil.robots.get_experiment(name)`, is where `hil run NAME` looks
@@ -25,6 +27,7 @@ from hil.experiments.contact import CONTACT, CONTACT_LONG
 from hil.experiments.humanoid import PUSH, STAND
 from hil.experiments.identify import IDENTIFY, IdentifyExperiment
 from hil.experiments.impact import IMPACT, IMPACT_LONG
+from hil.experiments.suspended import SUSPENDED_CHIRP, SuspendedChirpExperiment
 from hil.experiments.walking import STEP_ON_OBJECT, WALK_DYNAMIC, WALK_SLOW
 from hil.plugins import PluginError, class_from_target, target_of
 
@@ -63,6 +66,7 @@ __all__ = [
     "PUSH",
     "STAND",
     "STEP_ON_OBJECT",
+    "SUSPENDED_CHIRP",
     "WALK_DYNAMIC",
     "WALK_SLOW",
     "Experiment",
@@ -70,6 +74,7 @@ __all__ = [
     "Obstacle",
     "Push",
     "Ramp",
+    "SuspendedChirpExperiment",
     "TestbedExperiment",
     "World",
     "plugin_experiment",

@@ -140,6 +140,9 @@ class World:
     floor_objects: tuple[FloorObject, ...] = ()
     tool_pushes: tuple[ToolPush, ...] = ()
     block: Block | None = None
+    # a humanoid hung by its pelvis from a gantry, its feet clear of the floor (the legs'
+    # identification, hil/experiments/suspended.py): the emulator hangs it so
+    suspended: bool = False
 
 
 class ReferenceFeedback(abc.ABC):

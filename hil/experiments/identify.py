@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,6 +41,44 @@ from hil.output.report import Column, number
 from hil.output.rundir import RunData
 
 PLANNED_GOAL_TOLERANCE_RAD = 1e-6  # the log keeps 9 decimals
+# An open-loop excitation's report columns (`excitation_metrics`)
+EXCITATION_COLUMNS = (
+    Column("peak_current_a", "peak current [A]", number(".2f")),
+    Column("peak_goal_rate_rad_s", "peak goal rate [rad/s]", number(".2f")),
+    Column("excitation_coverage", "coverage", number(".3f")),
+)
+
+
+def excitation_metrics(run: RunData, planned_at: Callable[[float], np.ndarray]) -> dict[str, float]:
+    """An open-loop excitation's metrics (the module docstring's first three) from a run's log;
+    `planned_at(period_s)`: the planned goal offsets per tick, (ticks,) for every joint or
+    (ticks, joints)."""
+    phase = run.columns.get("phase")
+    if phase is None:
+        raise ValueError("the log has no phase column")
+    rows = np.flatnonzero(phase == "experiment")
+    if rows.size < 2:
+        return {"excitation_coverage": 0.0}
+    period = float(np.median(np.diff(run.time_s)))
+    first_tick = int(round((run.time_s[rows[0]] - run.experiment_start_s) / period))
+    planned = planned_at(period)
+    index = np.clip(first_tick + np.arange(rows.size), 0, len(planned) - 1)
+    peak_current, peak_rate, coverage = 0.0, 0.0, 1.0
+    for column, joint in enumerate(run.joint_names):
+        current = np.abs(run.signal("motor_current_a", joint)[rows])
+        goal = run.signal("goal_rad", joint)[rows]
+        peak_current = max(peak_current, float(np.nanmax(current)))
+        steps = np.abs(np.diff(goal))
+        peak_rate = max(peak_rate, float(np.nanmax(steps, initial=0.0)) / period)
+        own = planned if planned.ndim == 1 else planned[:, column]
+        expected = goal[0] - own[index[0]] + own[index]
+        followed = np.abs(goal - expected) <= PLANNED_GOAL_TOLERANCE_RAD
+        coverage = min(coverage, float(np.count_nonzero(followed)) / rows.size)
+    return {
+        "peak_current_a": peak_current,
+        "peak_goal_rate_rad_s": peak_rate,
+        "excitation_coverage": coverage,
+    }
 
 
 @dataclass(frozen=True)
@@ -98,40 +137,17 @@ class IdentifyExperiment(Experiment):
 
     # --- after a run -----------------------------------------------------------------------
     def metrics(self, run: RunData) -> dict[str, Any]:
-        phase = run.columns.get("phase")
-        if phase is None:
-            raise ValueError("the log has no phase column")
-        rows = np.flatnonzero(phase == "experiment")
-        if rows.size < 2:
-            return {"excitation_coverage": 0.0}
-        period = float(np.median(np.diff(run.time_s)))
-        first_tick = int(round((run.time_s[rows[0]] - run.experiment_start_s) / period))
-        planned = self._offsets_at(period)
-        index = np.clip(first_tick + np.arange(rows.size), 0, len(planned) - 1)
-        peak_current, peak_rate, coverage = 0.0, 0.0, 1.0
-        for joint in run.joint_names:
-            current = np.abs(run.signal("motor_current_a", joint)[rows])
-            goal = run.signal("goal_rad", joint)[rows]
-            peak_current = max(peak_current, float(np.nanmax(current)))
-            steps = np.abs(np.diff(goal))
-            peak_rate = max(peak_rate, float(np.nanmax(steps, initial=0.0)) / period)
-            expected = goal[0] - planned[index[0]] + planned[index]
-            followed = np.abs(goal - expected) <= PLANNED_GOAL_TOLERANCE_RAD
-            coverage = min(coverage, float(np.count_nonzero(followed)) / rows.size)
+        figures = excitation_metrics(run, self._offsets_at)
+        if "peak_current_a" not in figures:
+            return figures
         return {
-            "peak_current_a": peak_current,
-            "peak_goal_rate_rad_s": peak_rate,
-            "excitation_coverage": coverage,
+            **figures,
             "validation_start_s": run.experiment_start_s + self.excitation.validation_start_s,
         }
 
     @property
     def report_columns(self) -> tuple[Column, ...]:
-        return (
-            Column("peak_current_a", "peak current [A]", number(".2f")),
-            Column("peak_goal_rate_rad_s", "peak goal rate [rad/s]", number(".2f")),
-            Column("excitation_coverage", "coverage", number(".3f")),
-        )
+        return EXCITATION_COLUMNS
 
 
 IDENTIFY = IdentifyExperiment(

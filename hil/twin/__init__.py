@@ -9,6 +9,11 @@
     toml_file.py  the twin as a configuration file
     check.py      replays of runs on the twin and on the default emulator: MAE and rms per
                   joint and signal, report.md
+    legs_figures.py  DYROS-JET's legs: the twelve joints' figures, and the configuration
+                  they make
+    legs.py       the legs' fit: block Levenberg-Marquardt on the suspended excitation, the
+                  friction model per joint, what the feet must show (the ankles' gears)
+    executor.py   where a fit's replays run: this process, forked processes, or Ray tasks
 
 `hil twin` (hil/cli/twin.py) is the command; docs/twin.md the guide.
 """

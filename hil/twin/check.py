@@ -155,6 +155,8 @@ def check_twin(
         for (loop, emulator), replayed in traces.items():
             found += residuals(run, replayed, loop, emulator)
         figures.append(_figure(run, traces, out_dir))
+        if len(run.joint_names) > 1:
+            figures.append(_joints_figure(run, found, out_dir))
     result = CheckResult(found, figures, out_dir / "report.md")
     result.report.write_text(report_markdown(result, runs))
     from hil.output.strict_json import dumps
@@ -229,6 +231,37 @@ def _figure(run: RecordedRun, traces: dict[tuple[Loop, Emulator], Replayed], out
     fig.suptitle(f"{run.name}: recorded vs replayed", fontsize=10)
     fig.tight_layout()
     path = out / f"{run.name}.png"
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _joints_figure(run: RecordedRun, found: list[Residual], out: Path) -> Path:
+    """A robot of several joints at a glance: each joint's link-angle MAE, twin beside default,
+    each loop (log scale: the two may differ by decades)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    joints = list(run.joint_names)
+    mine = [r for r in found if r.run == run.name and r.signal == "link_angle_rad"]
+    loops = [loop for loop in Loop if any(r.loop is loop for r in mine)]
+    fig, axes = plt.subplots(len(loops), 1, figsize=(10, 2.8 * len(loops)), squeeze=False)
+    x = np.arange(len(joints))
+    for axis, loop in zip(axes[:, 0], loops, strict=True):
+        bars = ((-0.2, Emulator.TWIN, "C0"), (0.2, Emulator.DEFAULT, "C3"))
+        for offset, emulator, colour in bars:
+            by_joint = {r.joint: r.mae for r in mine if r.loop is loop and r.emulator is emulator}
+            heights = [by_joint.get(j, np.nan) for j in joints]
+            axis.bar(x + offset, heights, 0.4, color=colour, label=str(emulator))
+        axis.set_yscale("log")
+        axis.set_xticks(x, joints, rotation=45, fontsize=7)
+        axis.set_ylabel(f"link angle MAE\n[mrad], {loop}", fontsize=8)
+        axis.legend(fontsize=8)
+    fig.suptitle(f"{run.name}: each joint's link-angle error, twin vs default", fontsize=10)
+    fig.tight_layout()
+    path = out / f"{run.name}-joints.png"
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return path

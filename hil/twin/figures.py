@@ -111,8 +111,8 @@ def single_joint(config: Config) -> None:
     if config.model.robot != Robot.TESTBED or len(config.joints) != 1:
         raise ValueError(
             "hil twin fits the 1-DoF testbed's joint (one [[joint]], [model] robot = "
-            f"'{Robot.TESTBED}'); this configuration has {len(config.joints)} joints of "
-            f"{config.model.robot!r}"
+            f"'{Robot.TESTBED}') and DYROS-JET's legs (hil/twin/legs.py); this configuration "
+            f"has {len(config.joints)} joints of {config.model.robot!r}"
         )
 
 

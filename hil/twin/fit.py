@@ -31,9 +31,7 @@ the current limit or whose excitation was rewritten, a solver that did not conve
 
 from __future__ import annotations
 
-import concurrent.futures
 import math
-import multiprocessing
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -44,6 +42,7 @@ import scipy.stats
 from hil.config import Config, ConfigError
 from hil.identify.covariance import sandwich_covariance
 from hil.identify.records import MIN_SAMPLES
+from hil.twin.executor import ReplayExecutor, install_runs, installed
 from hil.twin.figures import (
     COMMON,
     FIGURES,
@@ -92,6 +91,7 @@ class FitOptions:
     correlation_limit: float = 0.98
     residual_limit_rad: float = 1.0e-3
     friction_models: tuple[GearboxFriction, ...] = tuple(GearboxFriction)
+    ray: str | None = None  # the replays as Ray tasks: a cluster's address, "" a local Ray
 
 
 @dataclass(frozen=True)
@@ -135,10 +135,6 @@ class TwinFit:
 
 # ----------------------------------------------------------------------------- the residual
 
-# The runs a worker replays: set before the pool forks (its processes inherit them).
-_RUNS: list[RecordedRun] = []
-_BASE: list[Config] = []
-
 
 @dataclass(frozen=True)
 class Problem:
@@ -177,10 +173,13 @@ class Problem:
 
 def _blocks(problem: Problem, x: np.ndarray) -> list[np.ndarray]:
     """Per run, (rows, channels) of weighted replayed - recorded, NaN rows zeroed."""
-    config = twin_config(_BASE[0], problem.values(x), problem.friction)
+    runs, base = installed()
+    config = twin_config(base, problem.values(x), problem.friction)
     out = []
-    for run, (first, stop) in zip(_RUNS, problem.rows, strict=True):
+    for run, (first, stop) in zip(runs, problem.rows, strict=True):
         replayed = replay_goals(config, run, Reading.PLANT, ticks=stop)
+        if replayed.unstable:  # figures MuJoCo cannot integrate: out of the emulator's reach
+            raise ValueError("the replay's integration was unstable")
         columns = []
         for channel, weight in zip(CHANNELS, problem.weights, strict=True):
             recorded = run.signal(channel)[:stop]
@@ -202,27 +201,20 @@ def _flat(args: tuple[Problem, np.ndarray]) -> np.ndarray:
 
 
 class _Evaluator:
-    """Residuals of many points, `workers` at a time (a fork of this process each)."""
+    """Residuals of many points, `workers` at a time (forks of this process, or Ray tasks)."""
 
-    def __init__(self, runs: list[RecordedRun], base: Config, workers: int) -> None:
-        _RUNS[:] = runs
-        _BASE[:] = [base]
-        self.pool: concurrent.futures.ProcessPoolExecutor | None = None
-        if workers > 1:
-            self.pool = concurrent.futures.ProcessPoolExecutor(
-                workers, mp_context=multiprocessing.get_context("fork")
-            )
+    def __init__(
+        self, runs: list[RecordedRun], base: Config, workers: int, ray: str | None = None
+    ) -> None:
+        self.executor: ReplayExecutor[tuple[Problem, np.ndarray], np.ndarray] = ReplayExecutor(
+            _flat, install_runs, (runs, base), workers, ray
+        )
 
     def many(self, problem: Problem, xs: list[np.ndarray]) -> list[np.ndarray]:
-        tasks = [(problem, x) for x in xs]
-        if self.pool is None or len(tasks) == 1:
-            return [_flat(t) for t in tasks]
-        return list(self.pool.map(_flat, tasks))
+        return self.executor.many([(problem, x) for x in xs])
 
     def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown()
-            self.pool = None
+        self.executor.close()
 
 
 def _solve(
@@ -289,7 +281,8 @@ def _split(run: RecordedRun, options: FitOptions) -> int:
     return int(round((1.0 - options.holdout_fraction) * run.ticks))
 
 
-def _first_torque_tick(run: RecordedRun) -> int:
+def first_torque_tick(run: RecordedRun) -> int:
+    """The first tick a replay compares: the one after torque came on."""
     on = np.flatnonzero(run.torque_on_over_tick())
     return int(on[0]) + 1 if on.size else run.ticks
 
@@ -352,13 +345,13 @@ def fit_twin(
     problems: list[str] = []
     notes: list[str] = []
     splits = [_split(r, options) for r in runs]
-    fit_rows = tuple((_first_torque_tick(r), s) for r, s in zip(runs, splits, strict=True))
+    fit_rows = tuple((first_torque_tick(r), s) for r, s in zip(runs, splits, strict=True))
     held_rows = tuple((s, r.ticks) for r, s in zip(runs, splits, strict=True))
     if not _judge_data(runs, fit_rows, base, problems):  # too little to fit at all
         return TwinFit(base, friction_of(base), {}, [], [], {}, problems, notes)
     start = _start(runs, base, notes)
     friction = GearboxFriction.COULOMB_VISCOUS
-    evaluator = _Evaluator(runs, base, options.workers)
+    evaluator = _Evaluator(runs, base, options.workers, options.ray)
     try:
         weights = _weights(evaluator, start, friction, fit_rows)
         keys = COMMON
@@ -426,15 +419,20 @@ def _judge_data(
                     f"{run.out_dir}: the current sat at its limit on {saturated} samples: the "
                     "servo's law is not seen there (excite with less amplitude)"
                 )
-        coverage = (run.run.summary.get("metrics") or {}).get("excitation_coverage")
-        if isinstance(coverage, int | float) and coverage < 1.0:
-            problems.append(
-                f"{run.out_dir}: the supervisor rewrote {100 * (1 - coverage):.1f} % of the "
-                "excitation's goals (a limit or a safety hold)"
-            )
-        if run.run.termination != "completed":
-            problems.append(f"{run.out_dir}: the run did not complete ({run.run.termination})")
+        judge_run(run, problems)
     return True
+
+
+def judge_run(run: RecordedRun, problems: list[str]) -> None:
+    """A run whose excitation the supervisor rewrote, or that did not complete, into problems."""
+    coverage = (run.run.summary.get("metrics") or {}).get("excitation_coverage")
+    if isinstance(coverage, int | float) and coverage < 1.0:
+        problems.append(
+            f"{run.out_dir}: the supervisor rewrote {100 * (1 - coverage):.1f} % of the "
+            "excitation's goals (a limit or a safety hold)"
+        )
+    if run.run.termination != "completed":
+        problems.append(f"{run.out_dir}: the run did not complete ({run.run.termination})")
 
 
 def _weights(
@@ -563,7 +561,7 @@ def _link_estimates(
 ) -> dict[str, Estimate]:
     """The link's I and m r from the fitted masses (linear in them), intervals by their
     gradient through the covariance."""
-    plant = twin_config(_BASE[0], values, problem.friction)
+    plant = twin_config(installed()[1], values, problem.friction)
     from hil.wiring.emulation import plant_servo_noise
 
     params = plant_servo_noise(plant)[0]

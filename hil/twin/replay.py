@@ -19,7 +19,9 @@ import enum
 import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import mujoco
 import numpy as np
 
 from hil.config import Config
@@ -30,6 +32,10 @@ from hil.twin.runs import FORCE_SIGNAL, RecordedRun
 from hil.vocabulary import ControllerChoice
 from hil.wiring.emulation import emulator_spec
 from hil.wiring.in_process import InProcessJointBus
+from sim_backend.flexible_robot import FlexibleJointRobot
+
+if TYPE_CHECKING:
+    from sim_backend.hardware import EmulatedHardware
 
 
 class Reading(enum.Enum):
@@ -45,6 +51,8 @@ class Replayed:
     link_angle_rad: np.ndarray
     motor_current_a: np.ndarray
     force_n: np.ndarray | None
+    # MuJoCo found the integration unstable (and reset its state): figures no robot has
+    unstable: bool = False
 
     def signal(self, name: str) -> np.ndarray:
         if name == "deflection_rad":
@@ -89,15 +97,11 @@ def _play(bus: InProcessJointBus, run: RecordedRun, reading: Reading, ticks: int
             testbed = bus.testbed
             assert testbed is not None
             testbed.sync()
-            joints = testbed.robot.joints  # the testbed's EmulatedJoint per joint
-            out[0, k] = [j.plant.motor_angle_rad for j in joints]
-            out[1, k] = [j.plant.link_angle_rad for j in joints]
-            # the motor's torque over the torque constant: the current without its noise
-            out[2, k] = [j.plant.motor_torque_nm / j.bank.torque_constant[0] for j in joints]
+            out[:, k] = _plant_state(testbed.robot)
             out[0, k] += motor_error
             out[1, k] += link_error
             if force is not None:
-                force[k] = sum(j.plant.contact_force_n() for j in joints)
+                force[k] = sum(j.plant.contact_force_n() for j in testbed.robot.joints)
         if torque[k] and not on:
             bus.enable()
             on = True
@@ -106,7 +110,36 @@ def _play(bus: InProcessJointBus, run: RecordedRun, reading: Reading, ticks: int
             on = False
         if on and np.isfinite(goals[k]).all():
             bus.write(goals[k])
-    return Replayed(out[0], out[1], out[2], force)
+    return Replayed(out[0], out[1], out[2], force, _unstable(bus))
+
+
+def _unstable(bus: InProcessJointBus) -> bool:
+    """Whether MuJoCo warned of an unstable integration (a bad acceleration) in the replay."""
+    hardware = bus.testbed.robot if bus.testbed is not None else None
+    robot = getattr(hardware, "robot", None)
+    plants = [robot.plant] if isinstance(robot, FlexibleJointRobot) else [
+        j.plant for j in getattr(hardware, "joints", ())
+    ]  # fmt: skip
+    bad = mujoco.mjtWarning.mjWARN_BADQACC
+    return any(int(p.data.warning[bad].number) > 0 for p in plants)
+
+
+def _plant_state(hardware: EmulatedHardware) -> np.ndarray:
+    """(3, joints): the plant's motor angles, link angles and the motor's torque over the
+    torque constant (the current without its noise), physical frame."""
+    robot = getattr(hardware, "robot", None)
+    if isinstance(robot, FlexibleJointRobot):  # the humanoid, a fixed-base robot: one plant
+        plant = robot.plant
+        current = plant.motor_torque_nm / np.asarray(robot.bank.torque_constant)
+        return np.stack([plant.motor_angle_rad, plant.link_angle_rad, current])
+    joints = hardware.joints  # the testbed's EmulatedJoint per joint
+    return np.array(
+        [
+            [j.plant.motor_angle_rad for j in joints],
+            [j.plant.link_angle_rad for j in joints],
+            [j.plant.motor_torque_nm / j.bank.torque_constant[0] for j in joints],
+        ]
+    )
 
 
 def replay_closed_loop(config: Config, run: RecordedRun, out_root: Path | None = None) -> Replayed:

@@ -79,6 +79,7 @@ class EmulatedHumanoid(PlantClock):
             ],
             rng=rng(spec.seed, 1000),
             floor_boxes=humanoid.floor_boxes,
+            suspended=humanoid.suspended,
         )
         robot.pushes = [
             PelvisPush(p.start_s, p.duration_s, tuple(p.force_n))

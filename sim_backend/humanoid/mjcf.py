@@ -2,8 +2,10 @@
 pinocchio model reads, so the two models share every figure).
 
 Tree (sim_backend/urdf_mjcf.py, shared with the fixed-base robots): the URDF's floating joint
-becomes MuJoCo's free joint on the pelvis. Each of the 12 leg
-joints becomes a flexible joint, the way the 1-DoF testbed is built (sim_backend/plant.py):
+becomes MuJoCo's free joint on the pelvis, or, `suspended=True`, nothing: the pelvis is fixed in
+the world at SUSPENSION_HEIGHT_M, upright, the robot hung from a gantry with its legs free (for
+identifying them). Each of the 12 leg joints becomes a flexible joint, the way the 1-DoF
+testbed is built (sim_backend/plant.py):
 
     parent --[hinge "<J>_motor": rotor; armature = reflected inertia, gearbox friction]--> rotor
     rotor  --[hinge "<J>": the gear; stiffness K, damping D, springref 0]--> the URDF child link
@@ -48,9 +50,23 @@ from sim_backend.urdf_mjcf import (
 from sim_backend.urdf_mjcf import num as _num
 from sim_backend.urdf_mjcf import vec as _vec
 
-__all__ = ["FT_SUFFIX", "MOTOR_SUFFIX", "ROTOR_MASS_KG", "build_mjcf", "leg_figures"]
+__all__ = [
+    "FT_SUFFIX",
+    "MOTOR_SUFFIX",
+    "ROTOR_MASS_KG",
+    "SUSPENSION_HEIGHT_M",
+    "build_mjcf",
+    "leg_figures",
+]
 
 FLOOR_BOX_PREFIX = "floor_box_"
+
+# Where a suspended robot's pelvis (base_link's origin) hangs above the floor [m]. Standing on
+# straight legs DYROS-JET's pelvis origin is 0.924 m above its soles' undersides (the URDF's
+# figures: HumanoidPlant.place_standing at zero leg angles), so 1.2 m leaves both soles 0.28 m
+# clear with the legs straight (more with the knees bent; a sole tipped 60 deg at the ankle
+# still clears ~0.15 m): the floor stays in the model and nothing touches it.
+SUSPENSION_HEIGHT_M = 1.2
 
 
 def leg_figures(
@@ -78,10 +94,12 @@ def build_mjcf(
     rigid: bool = False,
     velocity_gains_nms_per_rad: Sequence[float] | None = None,
     floor_boxes: Sequence[FloorBox] = (),
+    suspended: bool = False,
 ) -> str:
     """The MJCF text (see the module docstring). velocity_gains: the servos' kv per leg joint
     (default: each joint's H54ServoParams.velocity_gain_nms_per_rad); floor_boxes: objects on
-    the floor, geoms "floor_box_<i>"."""
+    the floor, geoms "floor_box_<i>"; suspended: the pelvis fixed SUSPENSION_HEIGHT_M above the
+    floor, no free joint (so qpos holds the leg hinges alone, from address 0)."""
     if velocity_gains_nms_per_rad is None:
         velocity_gains_nms_per_rad = [
             params.servo_params(i).velocity_gain_nms_per_rad for i in range(len(LEG_JOINT_NAMES))
@@ -107,8 +125,12 @@ def build_mjcf(
         sole_contact=SoleContact(c.friction, c.time_constant_s, c.damping_ratio),
         rigid=rigid,
     )
-    writer.emit(2, f'<body name="{base.child}" pos="{_vec(base.origin_xyz_m)}">')
-    writer.emit(3, f'<freejoint name="{base.name}"/>')
+    if suspended:  # hung from the gantry: welded to the world
+        hung = np.asarray(base.origin_xyz_m, dtype=float) + (0.0, 0.0, SUSPENSION_HEIGHT_M)
+        writer.emit(2, f'<body name="{base.child}" pos="{_vec(hung)}">')
+    else:
+        writer.emit(2, f'<body name="{base.child}" pos="{_vec(base.origin_xyz_m)}">')
+        writer.emit(3, f'<freejoint name="{base.name}"/>')
     writer.link_contents(3, base.child)
     writer.emit(2, "</body>")
     body = "\n".join(writer.lines)

@@ -13,9 +13,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
+from sim_backend.friction import (
+    NEUTRAL_LOAD_FRICTION_RATIO,
+    NEUTRAL_STRIBECK_FRICTION_NM,
+    NEUTRAL_STRIBECK_VELOCITY_RAD_S,
+    GearboxFriction,
+    GearboxFrictionParams,
+)
 from sim_backend.servo import H54ServoParams
 
 # DYROS-JET's leg joints and upper body: the emulator's one copy (the controller holds its own,
@@ -86,6 +93,35 @@ def _per_joint(value: float | tuple[float, ...], name: str) -> tuple[float, ...]
     return values
 
 
+def _per_joint_model(value: str | tuple[str, ...]) -> tuple[str, ...]:
+    """gearbox_friction_model as 12 words, each one of GearboxFriction's (refused by name)."""
+    words = (value,) * N_LEG_JOINTS if isinstance(value, str) else tuple(value)
+    if len(words) != N_LEG_JOINTS:
+        raise ValueError(f"gearbox_friction_model needs one word or {N_LEG_JOINTS} words")
+    laws = []
+    for joint, word in zip(LEG_JOINT_NAMES, words, strict=True):
+        try:
+            laws.append(GearboxFriction(word).value)
+        except ValueError:
+            choices = ", ".join(repr(m.value) for m in GearboxFriction)
+            raise ValueError(
+                f"gearbox_friction_model must be one of {choices}, got {word!r} ({joint})"
+            ) from None
+    return tuple(laws)
+
+
+# The servo's SI figures a run may give per joint (RobotTruthParams), each replacing the
+# H54ServoParams field of the same name.
+SERVO_FIGURES = ("position_gain_per_s", "velocity_gain_nms_per_rad", "velocity_integral_time_s")
+
+# The gearbox friction figures beyond Coulomb and viscous (sim_backend/friction.py), per joint.
+FRICTION_FIGURES = (
+    "gearbox_stribeck_friction_nm",
+    "gearbox_stribeck_velocity_rad_s",
+    "gearbox_load_friction_ratio",
+)
+
+
 def lab_position_gain_registers() -> tuple[int, ...]:
     """Position P Gain (594) per leg joint: 32 (10 1/s) except the knees (58, ~18 1/s)."""
     return tuple(
@@ -151,7 +187,16 @@ class RobotTruthParams:
     com_offset_link / com_offset_m: a shift of one link's centre of mass (default the torso,
         14.1 kg of the 50 kg), e.g. a payload the controller does not know of.
     upper_body_angles_rad: where the waist and arm joints are welded.
+    gearbox_friction_model: the gearbox friction law per joint (sim_backend/friction.py:
+        "coulomb-viscous", "stribeck", "load-dependent"), with its figures
+        gearbox_stribeck_friction_nm, gearbox_stribeck_velocity_rad_s and
+        gearbox_load_friction_ratio (a figure a joint's law does not read stays at its neutral
+        value for that joint: give a 12-tuple when the joints' laws differ). The default
+        (coulomb-viscous everywhere) is MuJoCo's constant frictionloss, nothing per step.
     servo: the H54 firmware's SI figures (one for all joints, or 12).
+    position_gain_per_s / velocity_gain_nms_per_rad / velocity_integral_time_s: the servo's
+        Kpp, kv and Ti per joint (None: the `servo`'s; a float: all joints; a 12-tuple), at
+        the default registers as H54ServoParams' are (the registers still scale them).
     position_gain_registers: Position P Gain (594) per joint at power-on (the lab's knee
         Kp = 18: see LAB_KNEE_POSITION_GAIN_REGISTER). A REBOOT returns a device's RAM to the
         e-Manual default (32): the host re-writes it, as on the real robot.
@@ -163,6 +208,10 @@ class RobotTruthParams:
     motor_reflected_inertia_kg_m2: float | tuple[float, ...] = 0.25
     gearbox_coulomb_friction_nm: float | tuple[float, ...] = 3.95
     gearbox_viscous_friction_nms_per_rad: float | tuple[float, ...] = 1.14
+    gearbox_friction_model: str | tuple[str, ...] = GearboxFriction.COULOMB_VISCOUS.value
+    gearbox_stribeck_friction_nm: float | tuple[float, ...] = NEUTRAL_STRIBECK_FRICTION_NM
+    gearbox_stribeck_velocity_rad_s: float | tuple[float, ...] = NEUTRAL_STRIBECK_VELOCITY_RAD_S
+    gearbox_load_friction_ratio: float | tuple[float, ...] = NEUTRAL_LOAD_FRICTION_RATIO
     mass_scale: float = 1.0
     com_offset_link: str = "WaistYaw_Link"
     com_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -170,6 +219,9 @@ class RobotTruthParams:
         default_factory=lambda: dict(LAB_WALK_INIT_UPPER_BODY_RAD)
     )
     servo: H54ServoParams | tuple[H54ServoParams, ...] = field(default_factory=H54ServoParams)
+    position_gain_per_s: float | tuple[float, ...] | None = None
+    velocity_gain_nms_per_rad: float | tuple[float, ...] | None = None
+    velocity_integral_time_s: float | tuple[float, ...] | None = None
     position_gain_registers: tuple[int, ...] = field(default_factory=lab_position_gain_registers)
     contact: ContactParams = field(default_factory=ContactParams)
     physics_timestep_s: float = 0.001
@@ -198,6 +250,23 @@ class RobotTruthParams:
         if len(servos) != N_LEG_JOINTS:
             raise ValueError(f"servo needs one H54ServoParams or {N_LEG_JOINTS}")
         object.__setattr__(self, "servo", servos)
+        for name in SERVO_FIGURES:
+            if getattr(self, name) is not None:
+                values = _per_joint(getattr(self, name), name)
+                if any(v <= 0 for v in values):
+                    raise ValueError(f"{name} must be positive, got {values}")
+                object.__setattr__(self, name, values)
+        object.__setattr__(
+            self, "gearbox_friction_model", _per_joint_model(self.gearbox_friction_model)
+        )
+        for name in FRICTION_FIGURES:
+            object.__setattr__(self, name, _per_joint(getattr(self, name), name))
+        for joint, name in enumerate(LEG_JOINT_NAMES):
+            try:  # the friction's and the servo's own checks (a figure its law does not read)
+                self.gearbox_friction(joint)
+                self.servo_params(joint)
+            except ValueError as error:
+                raise ValueError(f"{name}: {error}") from None
         if len(self.position_gain_registers) != N_LEG_JOINTS:
             raise ValueError(f"position_gain_registers needs {N_LEG_JOINTS} entries")
         if not (math.isfinite(self.mass_scale) and self.mass_scale > 0):
@@ -211,9 +280,28 @@ class RobotTruthParams:
             raise ValueError("com_offset_m needs 3 entries")
 
     def servo_params(self, joint: int) -> H54ServoParams:
+        """One joint's firmware figures: its `servo` with any per-joint Kpp, kv, Ti put in."""
         servos = self.servo
         assert isinstance(servos, tuple)
-        return servos[joint]
+        changes = {
+            name: values[joint]
+            for name in SERVO_FIGURES
+            if (values := getattr(self, name)) is not None
+        }
+        return replace(servos[joint], **changes) if changes else servos[joint]
+
+    def gearbox_friction(self, joint: int) -> GearboxFrictionParams:
+        """One joint's gearbox friction law and figures (sim_backend/friction.py); its checks
+        refuse a figure the joint's law does not read, naming the key."""
+        models = self.gearbox_friction_model
+        assert isinstance(models, tuple)
+        return GearboxFrictionParams(
+            model=models[joint],
+            coulomb_nm=self.per_joint("gearbox_coulomb_friction_nm")[joint],
+            stribeck_nm=self.per_joint("gearbox_stribeck_friction_nm")[joint],
+            stribeck_velocity_rad_s=self.per_joint("gearbox_stribeck_velocity_rad_s")[joint],
+            load_ratio=self.per_joint("gearbox_load_friction_ratio")[joint],
+        )
 
     def per_joint(self, name: str) -> tuple[float, ...]:
         """A per-joint figure as a 12-tuple (after validation every such field is one)."""

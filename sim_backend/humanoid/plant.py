@@ -11,6 +11,15 @@ paper's (1) is what the spring carries (MuJoCo's passive force on the deflection
 -tau_j). A foot wrench is the ground's force and moment ON THE ROBOT, in the foot sensor's frame
 (the *_AnkleRoll_Link frame, at the ankle axis), the moment about the sensor's origin: standing
 still, the vertical forces are positive and sum to the robot's weight.
+
+Suspended (`suspended=True`): the pelvis is fixed in the world (no free joint; mjcf.py), the legs
+hang free of the floor, `hang` places them; the feet's sensors then read ~0 and a push on the
+pelvis goes into the gantry.
+
+Gearbox friction: a joint whose law varies (RobotTruthParams.gearbox_friction_model other than
+"coulomb-viscous") has its bound rewritten into `dof_frictionloss` at its motor dof before every
+step, from its motor speed and its gear torque at the step's start, as the testbed does
+(sim_backend/plant.py, sim_backend/friction.py); the others keep the MJCF's constant bound.
 """
 
 from __future__ import annotations
@@ -21,6 +30,7 @@ import mujoco
 import numpy as np
 
 from sim_backend.flexible_robot import strided_view
+from sim_backend.friction import GearboxFriction, GearboxFrictionParams
 from sim_backend.humanoid.mjcf import FT_SUFFIX, MOTOR_SUFFIX, build_mjcf
 from sim_backend.humanoid.params import (
     FOOT_LINK_NAMES,
@@ -43,15 +53,18 @@ class HumanoidPlant:
         *,
         velocity_gains_nms_per_rad: Sequence[float] | None = None,
         floor_boxes: Sequence[FloorBox] = (),
+        suspended: bool = False,
     ) -> None:
         self.params = params or RobotTruthParams()
         self.description = parse_urdf(urdf_text)
         self.floor_boxes = tuple(floor_boxes)
+        self.suspended = suspended
         self.mjcf = build_mjcf(
             self.description,
             self.params,
             velocity_gains_nms_per_rad=velocity_gains_nms_per_rad,
             floor_boxes=self.floor_boxes,
+            suspended=suspended,
         )
         model = mujoco.MjModel.from_xml_string(self.mjcf)
         self.model = model
@@ -95,6 +108,21 @@ class HumanoidPlant:
         # firmware reads them every step without a copy; copies otherwise.
         self._motor_angle_view = strided_view(self.data.qpos, self._motor_qpos)
         self._motor_velocity_view = strided_view(self.data.qvel, self._motor_dof)
+        # the joints whose gearbox friction law varies: their bounds rewritten before each step
+        laws = [self.params.gearbox_friction(i) for i in range(N_LEG_JOINTS)]
+        varying = np.array([i for i, law in enumerate(laws) if law.varies], dtype=int)
+        self._friction = (
+            _VaryingFriction(
+                [laws[i] for i in varying],
+                self._motor_dof[varying],
+                self._gear_qpos[varying],
+                self._gear_dof[varying],
+                self._stiffness[varying],
+                self._damping[varying],
+            )
+            if varying.size
+            else None
+        )
         mujoco.mj_forward(model, self.data)
 
     # --- state (copies, lab leg order) --------------------------------------------------------
@@ -283,6 +311,8 @@ class HumanoidPlant:
         if self._braking or self._brake_applied:  # (no brake: nothing to apply, nothing to undo)
             data.qfrc_applied[self._motor_dof] = -self._brake_damping * data.qvel[self._motor_dof]
             self._brake_applied = self._braking
+        if self._friction is not None:  # (coulomb-viscous everywhere: the MJCF's constant)
+            self._friction.write(self.model, data)
         mujoco.mj_step(self.model, data)
 
     # --- set-up -------------------------------------------------------------------------------
@@ -297,9 +327,9 @@ class HumanoidPlant:
 
         The gears are not yet loaded: let the robot settle (step) before measuring statics.
         """
-        angles = np.asarray(leg_angles_rad, dtype=float)
-        if angles.shape != (N_LEG_JOINTS,) or not np.all(np.isfinite(angles)):
-            raise ValueError(f"leg_angles_rad must be {N_LEG_JOINTS} finite angles")
+        if self.suspended:
+            raise ValueError("a suspended robot does not stand: hang it (HumanoidPlant.hang)")
+        angles = _leg_angles(leg_angles_rad)
         if not support_feet or any(side not in (0, 1) for side in support_feet):
             raise ValueError("support_feet must name feet 0 (left) and/or 1 (right)")
         model, data = self.model, self.data
@@ -327,6 +357,68 @@ class HumanoidPlant:
         middle = np.mean(bottoms, axis=0)
         data.qpos[:3] = (-middle[0], -middle[1], -lowest)
         mujoco.mj_forward(model, data)
+
+    def hang(self, leg_angles_rad: np.ndarray | Sequence[float]) -> None:
+        """Put the suspended robot at rest at these link angles (no deflection: motors = links),
+        its pelvis where the gantry holds it (the MJCF fixes it; no free joint to place).
+
+        The gears are not yet loaded: let the legs settle (step) before measuring statics.
+        """
+        if not self.suspended:
+            raise ValueError("only a suspended robot hangs: place a standing one (place_standing)")
+        angles = _leg_angles(leg_angles_rad)
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        self._pelvis_force_due = True  # (the reset cleared xfrc_applied)
+        data.qpos[self._motor_qpos] = angles
+        data.qpos[self._gear_qpos] = 0.0
+        mujoco.mj_forward(model, data)
+
+
+class _VaryingFriction:
+    """The friction bounds of the joints whose gearbox law varies, computed for all of them at
+    once (numpy: this runs every physics step) as
+
+        F = F_c + F_s exp(-(w / w_s)^2) + mu |tau_t|
+
+    with F_s kept for the Stribeck joints only and mu for the load-dependent ones (0 for the
+    others), which is each joint's own law of sim_backend/friction.py: w its motor speed, tau_t
+    its gear torque K d + D d' (only its size is read)."""
+
+    def __init__(
+        self,
+        laws: Sequence[GearboxFrictionParams],
+        motor_dof: np.ndarray,
+        gear_qpos: np.ndarray,
+        gear_dof: np.ndarray,
+        stiffness_nm_per_rad: np.ndarray,
+        damping_nms_per_rad: np.ndarray,
+    ) -> None:
+        stribeck = np.array([law.law is GearboxFriction.STRIBECK for law in laws])
+        load = np.array([law.law is GearboxFriction.LOAD_DEPENDENT for law in laws])
+        self.motor_dof, self.gear_qpos, self.gear_dof = motor_dof, gear_qpos, gear_dof
+        self.stiffness, self.damping = stiffness_nm_per_rad, damping_nms_per_rad
+        self.coulomb = np.array([law.coulomb_nm for law in laws])
+        self.stribeck = np.where(stribeck, [law.stribeck_nm for law in laws], 0.0)
+        self.stribeck_velocity = np.array([law.stribeck_velocity_rad_s for law in laws])
+        self.load_ratio = np.where(load, [law.load_ratio for law in laws], 0.0)
+
+    def write(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Each varying joint's bound at the present state into model.dof_frictionloss."""
+        ratio = data.qvel[self.motor_dof] / self.stribeck_velocity
+        torque = (
+            self.stiffness * data.qpos[self.gear_qpos] + self.damping * data.qvel[self.gear_dof]
+        )
+        model.dof_frictionloss[self.motor_dof] = (
+            self.coulomb + self.stribeck * np.exp(-ratio * ratio) + self.load_ratio * np.abs(torque)
+        )
+
+
+def _leg_angles(leg_angles_rad: np.ndarray | Sequence[float]) -> np.ndarray:
+    angles = np.asarray(leg_angles_rad, dtype=float)
+    if angles.shape != (N_LEG_JOINTS,) or not np.all(np.isfinite(angles)):
+        raise ValueError(f"leg_angles_rad must be {N_LEG_JOINTS} finite angles")
+    return angles
 
 
 def _half_rotation(rotation: np.ndarray) -> np.ndarray:

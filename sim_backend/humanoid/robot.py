@@ -57,6 +57,8 @@ class EmulatedRobot(FlexibleJointRobot):
     initial_leg_angles_rad / support_feet: the robot is placed at rest at these link angles with
         these soles flat on the floor (plant.place_standing); each device's goal is where it
         stands, as a powered-up servo's.
+    suspended: the robot hangs by its pelvis from a gantry instead, its feet clear of the floor
+        (plant.hang at initial_leg_angles_rad; support_feet unused).
     motor_mountings: per joint, how the actuator is mounted (default: direction +1, offset 0).
     floor_boxes: objects lying on the floor (none by default).
     `pushes` act on the pelvis (`PelvisPush`).
@@ -73,6 +75,7 @@ class EmulatedRobot(FlexibleJointRobot):
         motor_mountings: Sequence[Mounting] | None = None,
         rng: np.random.Generator | None = None,
         floor_boxes: Sequence[FloorBox] = (),
+        suspended: bool = False,
     ) -> None:
         if len(tables) != N_LEG_JOINTS:
             raise ValueError(f"an emulated robot needs {N_LEG_JOINTS} control tables")
@@ -93,8 +96,12 @@ class EmulatedRobot(FlexibleJointRobot):
             self.truth,
             velocity_gains_nms_per_rad=bank.velocity_gains(),
             floor_boxes=floor_boxes,
+            suspended=suspended,
         )
-        plant.place_standing(initial_leg_angles_rad, support_feet)
+        if suspended:
+            plant.hang(initial_leg_angles_rad)
+        else:
+            plant.place_standing(initial_leg_angles_rad, support_feet)
         super().__init__(bank, plant, self.truth.position_gain_registers, plant.set_pelvis_force)
         self.plant: HumanoidPlant = plant
 

@@ -99,6 +99,7 @@ HIL_LAYERS = {
         "hil.identify",
         "hil.robots",
         "hil.session",
+        "hil.sweep",  # the fit's replays on Ray go the sweeps' way (hil/twin/executor.py)
     },
     "hil.api": {
         "hil.vocabulary",

@@ -77,6 +77,7 @@ def record(
     *,
     buses: bool = False,
     kdist: float | None = None,
+    duration_s: float | None = None,
 ) -> RunResult:
     """One run of `experiment` with `controller` (host's configuration) on the truth's hardware."""
     chosen = get_experiment(experiment)
@@ -88,7 +89,7 @@ def record(
             session = Session(
                 host, Setup.IN_PROCESS, out_root=out_root, plots=False, quiet=True, mcap=False
             )
-            return session.run_one(chosen, choice, print_result=False)
+            return session.run_one(chosen, choice, duration_s=duration_s, print_result=False)
     with EmbeddedEmulator(emulator_spec(truth, experiment=chosen)) as emulator:
         session = Session(
             host,
@@ -100,4 +101,4 @@ def record(
             quiet=True,
             mcap=False,
         )
-        return session.run_one(chosen, choice, print_result=False)
+        return session.run_one(chosen, choice, duration_s=duration_s, print_result=False)

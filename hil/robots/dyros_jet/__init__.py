@@ -6,7 +6,14 @@ not import each other: controller/humanoid/leg_model.py (the controller's model)
 sim_backend/humanoid/params.py (the emulator's truth); tests/hil/test_dyros_jet_facts.py keeps
 them equal to each other and to this robot's configuration, hil/data/dyros_jet.toml."""
 
-from hil.experiments import PUSH, STAND, STEP_ON_OBJECT, WALK_DYNAMIC, WALK_SLOW
+from hil.experiments import (
+    PUSH,
+    STAND,
+    STEP_ON_OBJECT,
+    SUSPENDED_CHIRP,
+    WALK_DYNAMIC,
+    WALK_SLOW,
+)
 from hil.robots.dyros_jet.check import check_description
 from hil.robots.dyros_jet.comparison import STANDING_COMPARISON, WALKING_COMPARISON
 from hil.robots.dyros_jet.emulation import HumanoidEmulation
@@ -16,11 +23,12 @@ from hil.vocabulary import Robot
 
 PROFILE = RobotProfile(
     robot=Robot.DYROS_JET,
-    summary="the humanoid DYROS-JET's 12 leg joints (stand, push, the walks; Sec. IV-C)",
+    summary="the humanoid DYROS-JET's 12 leg joints (stand, push, the walks; Sec. IV-C)"
+    " and hung for its twin (suspended-chirp)",
     emulated="emulated DYROS-JET legs",
     model=humanoid_legs,
     emulation=HumanoidEmulation(),
-    experiments=(STAND, PUSH, WALK_SLOW, WALK_DYNAMIC, STEP_ON_OBJECT),
+    experiments=(STAND, PUSH, WALK_SLOW, WALK_DYNAMIC, STEP_ON_OBJECT, SUSPENDED_CHIRP),
     bench_experiment=STAND,
     comparisons=(STANDING_COMPARISON, WALKING_COMPARISON),
     check=check_description,

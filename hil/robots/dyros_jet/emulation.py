@@ -1,7 +1,8 @@
 """The emulated DYROS-JET from a configuration: its 12 leg joints on one MuJoCo robot generated
 from the URDF (sim_backend/humanoid/), `[emulator] plant` overriding its truth
 (`RobotTruthParams`), standing at power-on in the experiment's first posture (else the
-walking-ready one), the feet's force/torque sensors on CAN."""
+walking-ready one) - or hung by its pelvis for an experiment whose world is suspended - the
+feet's force/torque sensors on CAN."""
 
 from __future__ import annotations
 
@@ -62,5 +63,6 @@ class HumanoidEmulation(RobotEmulation):
                 FloorBox(tuple(o.centre_m), tuple(o.size_m))
                 for o in (experiment.world.floor_objects if experiment is not None else ())
             ),
+            suspended=experiment is not None and experiment.world.suspended,
         )
         return {"humanoid": humanoid}
