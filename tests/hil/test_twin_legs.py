@@ -20,12 +20,17 @@ Run with -s for the table (docs/twin.md's figures come from it):
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+
 import pytest
 
 from hil.config import load_config
-from hil.twin.check import Emulator, Loop, check_twin
+from hil.twin.check import Emulator, Loop
 from hil.twin.legs import LegsFitOptions, fit_legs
 from hil.twin.runs import read_run
+from hil.twin.toml_file import write_config
 from hil.vocabulary import Robot
 from tests.support.bench_hardware import record
 from tests.support.legs_hardware import legs_truth_config
@@ -50,7 +55,17 @@ def legs(tmp_path_factory: pytest.TempPathFactory) -> dict:
         assert result.termination == "completed", (experiment, controller)
         held.append(result.out_dir)
     fit = fit_legs([read_run(r.out_dir) for r in fitted], LegsFitOptions(workers=2))
-    check = check_twin(fit.config, [read_run(p) for p in held], root / "check")
+    twin = write_config(fit.config, root / "twin.toml")
+    # The check as a user runs it, in a process of its own: in this long-lived test process,
+    # after other tests, the closed-loop walk on the twin has come out otherwise (see the
+    # closing note of 4 December 2026: the left hip roll 2.59 instead of 1.10 mrad)
+    done = subprocess.run(
+        [sys.executable, "-m", "hil", "twin", "--check", str(twin), *map(str, held),
+         "--out", str(root / "check"), "--json"],
+        capture_output=True, text=True, timeout=1800,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    check = json.loads(done.stdout.strip().splitlines()[-1])
     return {"fit": fit, "check": check, "truth": truth}
 
 
@@ -62,18 +77,18 @@ def test_the_fit_says_whether_it_can_be_trusted(legs: dict) -> None:
 
 
 def test_every_joint_replays_closer_on_the_twin_than_on_the_default(legs: dict) -> None:
-    check = legs["check"]
+    residuals = legs["check"]["residuals"]
+    twin, default = Emulator.TWIN.value, Emulator.DEFAULT.value
     failures = []
     print()
-    for loop in (Loop.CLOSED, Loop.OPEN):
-        for run in sorted({r.run for r in check.residuals}):
-            pairs = {}
-            for r in check.residuals:
-                if r.run == run and r.loop is loop and r.signal == "link_angle_rad":
-                    pairs.setdefault(r.joint, {})[r.emulator] = r.mae
-            worst = max(pairs, key=lambda j: pairs[j][Emulator.TWIN] / pairs[j][Emulator.DEFAULT])
-            ratio = pairs[worst][Emulator.TWIN] / pairs[worst][Emulator.DEFAULT]
+    for loop in (Loop.CLOSED.value, Loop.OPEN.value):
+        for run in sorted({r["run"] for r in residuals}):
+            pairs: dict[str, dict[str, float]] = {}
+            for r in residuals:
+                if r["run"] == run and r["loop"] == loop and r["signal"] == "link_angle_rad":
+                    pairs.setdefault(r["joint"], {})[r["emulator"]] = r["mae"]
+            worst = max(pairs, key=lambda j: pairs[j][twin] / pairs[j][default])
+            ratio = pairs[worst][twin] / pairs[worst][default]
             print(f"{loop:12s} {run:45s} worst joint {worst}: twin/default {ratio:.3f}")
-            failures += [(loop, run, j) for j, p in pairs.items()
-                         if not p[Emulator.TWIN] < p[Emulator.DEFAULT]]  # fmt: skip
+            failures += [(loop, run, j) for j, p in pairs.items() if not p[twin] < p[default]]
     assert not failures, failures
