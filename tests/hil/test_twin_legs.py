@@ -92,9 +92,9 @@ def test_every_joint_replays_closer_on_the_twin_than_on_the_default(legs: dict) 
             print(f"{loop:12s} {run:45s} worst joint {worst}: twin/default {ratio:.3f}")
             if loop == Loop.CLOSED.value and "walk" in run:
                 # A walk closed loop is chaotic: twins whose figures differ in the 14th digit
-                # (two builds of this fit) replay it with a left hip roll of 1.10 or 2.59 mrad
-                # (the default: 2.02), the other joints 0.5-3.5 or 1.5-8.0. Per joint it is
-                # reported, not judged; the mean over the joints is.
+                # (this fit alone, or in the fault suite after other tests) replay it with a
+                # left hip roll of 1.10 or 2.59 mrad (the default: 2.02), the other joints
+                # 0.5-3.5 or 1.5-8.0. Per joint it is reported, not judged; the mean is.
                 mean = {e: sum(p[e] for p in pairs.values()) / len(pairs) for e in (twin, default)}
                 print(f"{'':12s} {'':45s} mean: twin {mean[twin]:.3f}, default {mean[default]:.3f}")
                 failures += [] if mean[twin] < mean[default] else [(loop, run, "mean")]
