@@ -11,8 +11,10 @@
                   joint and signal, report.md
     legs_figures.py  DYROS-JET's legs: the twelve joints' figures, and the configuration
                   they make
-    legs.py       the legs' fit: block Levenberg-Marquardt on the suspended excitation, the
-                  friction model per joint, what the feet must show (the ankles' gears)
+    legs.py       the legs' fit: its stages on the suspended excitation, the friction model
+                  per joint, what the feet must show (the ankles' gears), intervals, problems
+    block_lm.py   the legs' solver: Levenberg-Marquardt on a block Jacobian of whole-robot
+                  replays, each joint's step accepted on its own cost
     executor.py   where a fit's replays run: this process, forked processes, or Ray tasks
 
 `hil twin` (hil/cli/twin.py) is the command; docs/twin.md the guide.

@@ -55,7 +55,7 @@ from hil.twin.figures import (
     twin_config,
 )
 from hil.twin.replay import Reading, replay_goals
-from hil.twin.runs import RecordedRun
+from hil.twin.runs import RecordedRun, first_torque_tick, judge_run
 from sim_backend.friction import GearboxFriction
 
 CHANNELS = ("motor_angle_rad", "link_angle_rad", "motor_current_a")
@@ -281,12 +281,6 @@ def _split(run: RecordedRun, options: FitOptions) -> int:
     return int(round((1.0 - options.holdout_fraction) * run.ticks))
 
 
-def first_torque_tick(run: RecordedRun) -> int:
-    """The first tick a replay compares: the one after torque came on."""
-    on = np.flatnonzero(run.torque_on_over_tick())
-    return int(on[0]) + 1 if on.size else run.ticks
-
-
 def _start(runs: list[RecordedRun], base: Config, notes: list[str]) -> dict[str, float]:
     """The recorded emulator's figures, then `hil identify`'s where an identification run is."""
     start = figures_of(base)
@@ -421,18 +415,6 @@ def _judge_data(
                 )
         judge_run(run, problems)
     return True
-
-
-def judge_run(run: RecordedRun, problems: list[str]) -> None:
-    """A run whose excitation the supervisor rewrote, or that did not complete, into problems."""
-    coverage = (run.run.summary.get("metrics") or {}).get("excitation_coverage")
-    if isinstance(coverage, int | float) and coverage < 1.0:
-        problems.append(
-            f"{run.out_dir}: the supervisor rewrote {100 * (1 - coverage):.1f} % of the "
-            "excitation's goals (a limit or a safety hold)"
-        )
-    if run.run.termination != "completed":
-        problems.append(f"{run.out_dir}: the run did not complete ({run.run.termination})")
 
 
 def _weights(

@@ -51,9 +51,20 @@ import numpy as np
 import scipy.optimize
 import scipy.stats
 
-from hil.config import Config, ConfigError
+from hil.config import Config
 from hil.identify.covariance import sandwich_covariance
-from hil.twin.executor import ReplayExecutor, install_runs, installed
+from hil.twin.block_lm import (
+    FD_STEP,
+    Problem,
+    Replays,
+    Rows,
+    jacobian,
+    joint_costs,
+    joint_residuals,
+    moved_figures,
+    normal_equations,
+    solve,
+)
 from hil.twin.figures import FRICTION_FIGURES, Scale
 from hil.twin.fit import (
     CHANNEL_FLOORS,
@@ -61,8 +72,6 @@ from hil.twin.fit import (
     LOG_BOUND,
     MODEL_STARTS,
     Estimate,
-    first_torque_tick,
-    judge_run,
 )
 from hil.twin.legs_figures import (
     JOINT_FIGURES,
@@ -73,13 +82,9 @@ from hil.twin.legs_figures import (
     legs_robot,
     legs_twin_config,
 )
-from hil.twin.replay import Reading, replay_goals
-from hil.twin.runs import RecordedRun
+from hil.twin.runs import RecordedRun, first_torque_tick, judge_run
 from sim_backend.friction import GearboxFriction
 
-FD_STEP = 1e-3  # the Jacobian's step in fit coordinates (0.1 % of a logarithmic figure)
-DAMPING_START = 1e-3  # Levenberg-Marquardt's damping at the start (relative to J^T J's diagonal)
-MAX_STEP = 0.5  # the largest change of a figure an iteration, in fit coordinates
 FRICTION_KEYS = (
     "gearbox_coulomb_friction_nm",
     "gearbox_viscous_friction_nms_per_rad",
@@ -125,266 +130,6 @@ class LegsFit:
     @property
     def trusted(self) -> bool:
         return not self.problems
-
-
-# ------------------------------------------------------------------------------ the residual
-
-
-def _replay_all(figures: LegFigures) -> list[np.ndarray] | None:
-    """Per run, (ticks, channels, joints) replayed - recorded (NaN zeroed); None where the
-    figures make no emulator."""
-    try:
-        runs, base = installed()
-        config = legs_twin_config(base, figures)
-        out = []
-        for run in runs:
-            replayed = replay_goals(config, run, Reading.PLANT)
-            if replayed.unstable:
-                return None
-            block = np.stack(
-                [replayed.signal(c) - run.signal(c) for c in CHANNELS], axis=1
-            )  # (ticks, channels, joints)
-            out.append(np.nan_to_num(block, nan=0.0))
-        return out
-    except (ValueError, ConfigError):
-        return None
-
-
-class _Replays:
-    """Replays of many figure sets, `workers` at a time (forks of this process, or Ray tasks)."""
-
-    def __init__(
-        self, runs: list[RecordedRun], base: Config, workers: int, ray: str | None = None
-    ) -> None:
-        self.executor: ReplayExecutor[LegFigures, list[np.ndarray] | None] = ReplayExecutor(
-            _replay_all, install_runs, (runs, base), workers, ray
-        )
-
-    def many(self, sets: list[LegFigures]) -> list[list[np.ndarray] | None]:
-        return self.executor.many(sets)
-
-    def close(self) -> None:
-        self.executor.close()
-
-
-@dataclass(frozen=True)
-class Rows:
-    """Which samples of each run a cost is taken over: per run, a (ticks,) mask."""
-
-    masks: tuple[np.ndarray, ...]
-
-
-def _joint_costs(blocks: list[np.ndarray], rows: Rows, weights: np.ndarray) -> np.ndarray:
-    """(joints,) each joint's weighted sum of squares over the rows."""
-    total = np.zeros(weights.shape[1])
-    for block, mask in zip(blocks, rows.masks, strict=True):
-        weighted = block[mask] * weights[None, :, :]
-        total += np.sum(weighted**2, axis=(0, 1))
-    return total
-
-
-def _joint_residuals(
-    blocks: list[np.ndarray], rows: Rows, weights: np.ndarray, joint: int
-) -> list[np.ndarray]:
-    """Per run, (rows, channels) joint `joint`'s weighted residual."""
-    return [
-        block[mask][:, :, joint] * weights[None, :, joint]
-        for block, mask in zip(blocks, rows.masks, strict=True)
-    ]
-
-
-# ------------------------------------------------------------------------------ coordinates
-
-
-def _moved(start: LegFigures, key: str, joints: Sequence[int], x: float) -> LegFigures:
-    """`start` with figure `key` moved by x fit coordinates on `joints` (mass_scale: joints
-    ignored)."""
-    out = start.copy()
-    f = figure(key)
-    if key == MASS_SCALE.key:
-        out.mass_scale = start.mass_scale * math.exp(x)
-        return out
-    for j in joints:
-        if f.scale is Scale.LOG:
-            out.joints[key][j] = start.joints[key][j] * math.exp(x)
-        else:
-            out.joints[key][j] = max(start.joints[key][j] + f.step * x, f.lower)
-    return out
-
-
-def _clip_step(key: str, value: float, dx: float) -> float:
-    """A step in fit coordinates kept within MAX_STEP (a logarithmic figure changes by at most
-    x1.65 an iteration: a stiffness or damping twenty times off makes MuJoCo's integration
-    unstable) and above a linear figure's lower bound."""
-    f = figure(key)
-    dx = float(np.clip(dx, -MAX_STEP, MAX_STEP))
-    if f.scale is Scale.LINEAR and math.isfinite(f.lower):
-        return max(dx, (f.lower - value) / f.step)
-    return dx
-
-
-# ------------------------------------------------------------------------------ the solver
-
-
-@dataclass
-class _Problem:
-    """One Levenberg-Marquardt problem: which figures of which joints, on which rows."""
-
-    keys: dict[int, tuple[str, ...]]  # per joint, its fitted figures
-    with_mass: bool
-    rows: Rows
-    weights: np.ndarray  # (channels, joints)
-
-    @property
-    def groups(self) -> list[str]:
-        """The figures perturbed together (each on every joint that fits it)."""
-        seen: list[str] = []
-        for keys in self.keys.values():
-            seen += [k for k in keys if k not in seen]
-        return seen
-
-
-def _jacobian(
-    replays: _Replays, problem: _Problem, at: LegFigures
-) -> tuple[list[np.ndarray] | None, dict[str, list[np.ndarray] | None]]:
-    """The residual at `at` and, per figure group, the residual with it moved by FD_STEP."""
-    groups = problem.groups + ([MASS_SCALE.key] if problem.with_mass else [])
-    sets = [at] + [
-        _moved(at, key, [j for j, keys in problem.keys.items() if key in keys], FD_STEP)
-        for key in groups
-    ]
-    results = replays.many(sets)
-    return results[0], dict(zip(groups, results[1:], strict=True))
-
-
-def _normal_equations(
-    problem: _Problem,
-    base: list[np.ndarray],
-    moved: dict[str, list[np.ndarray] | None],
-) -> tuple[list[tuple[int, str]], np.ndarray, np.ndarray, dict[int, np.ndarray]]:
-    """(columns, J^T J, J^T r, per joint its (rows, channels, own columns) block)."""
-    columns: list[tuple[int, str]] = [(j, k) for j, keys in problem.keys.items() for k in keys]
-    if problem.with_mass:
-        columns.append((-1, MASS_SCALE.key))
-    index = {c: i for i, c in enumerate(columns)}
-    n = len(columns)
-    jtj, jtr = np.zeros((n, n)), np.zeros(n)
-    blocks: dict[int, np.ndarray] = {}
-    mass_cols: dict[int, np.ndarray] = {}
-    for joint, keys in problem.keys.items():
-        r = np.concatenate(_joint_residuals(base, problem.rows, problem.weights, joint))
-        cols = []
-        for key in keys:
-            other = moved[key]
-            if other is None:  # a step out of the emulator's reach: no slope seen
-                cols.append(np.zeros_like(r))
-                continue
-            moved_r = np.concatenate(_joint_residuals(other, problem.rows, problem.weights, joint))
-            cols.append((moved_r - r) / FD_STEP)
-        block = np.stack(cols, axis=-1)  # (rows, channels, own)
-        blocks[joint] = block
-        flat = block.reshape(-1, len(keys))
-        ids = [index[(joint, k)] for k in keys]
-        jtj[np.ix_(ids, ids)] += flat.T @ flat
-        jtr[ids] += flat.T @ r.ravel()
-        if problem.with_mass and moved[MASS_SCALE.key] is not None:
-            other = moved[MASS_SCALE.key]
-            assert other is not None
-            moved_r = np.concatenate(_joint_residuals(other, problem.rows, problem.weights, joint))
-            g = ((moved_r - r) / FD_STEP).ravel()
-            mass_cols[joint] = g
-            m = index[(-1, MASS_SCALE.key)]
-            jtj[ids, m] += flat.T @ g
-            jtj[m, ids] += flat.T @ g
-            jtj[m, m] += g @ g
-            jtr[m] += g @ r.ravel()
-    return columns, jtj, jtr, blocks
-
-
-def _step(
-    columns: list[tuple[int, str]],
-    jtj: np.ndarray,
-    jtr: np.ndarray,
-    damping: dict[int, float],
-    at: LegFigures,
-) -> LegFigures:
-    """The damped Gauss-Newton step from `at` (each joint's damping on its own columns)."""
-    diagonal = np.diag(jtj).copy()
-    scale = np.where(diagonal > 0, diagonal, 1.0)
-    lam = np.array([damping[j] for j, _ in columns])
-    dx = np.linalg.lstsq(jtj + np.diag(lam * scale), -jtr, rcond=None)[0]
-    out = at.copy()
-    for (joint, key), step in zip(columns, dx, strict=True):
-        if joint < 0:
-            out = _moved(out, key, [], _clip_step(key, out.mass_scale, float(step)))
-        else:
-            value = float(out.joints[key][joint])
-            out = _moved(out, key, [joint], _clip_step(key, value, float(step)))
-    return out
-
-
-def _solve(
-    replays: _Replays,
-    problem: _Problem,
-    start: LegFigures,
-    iterations: int,
-    tolerance: float,
-    say: Callable[[str], None],
-) -> tuple[LegFigures, bool, int]:
-    """Levenberg-Marquardt with per-joint acceptance (module docstring): (figures, converged,
-    iterations used)."""
-    at = start
-    damping = {j: DAMPING_START for j in problem.keys} | {-1: DAMPING_START}
-    converged = False
-    done = 0
-    linearised = None  # the residual, cost and normal equations at `at`, while it stays
-    for done in range(1, iterations + 1):
-        if linearised is None:
-            base, moved = _jacobian(replays, problem, at)
-            if base is None:
-                raise ValueError("the start of the fit makes no emulator")
-            cost = _joint_costs(base, problem.rows, problem.weights)
-            columns, jtj, jtr, _ = _normal_equations(problem, base, moved)
-            linearised = (cost, columns, jtj, jtr)
-        cost, columns, jtj, jtr = linearised
-        linearised_mass = at.mass_scale
-        trial_at = _step(columns, jtj, jtr, damping, at)
-        trial = replays.many([trial_at])[0]
-        if trial is None:  # a step MuJoCo cannot integrate: shorter ones from the same point
-            for j in damping:
-                damping[j] *= 10.0
-            continue
-        trial_cost = _joint_costs(trial, problem.rows, problem.weights)
-        accepted = at.copy()
-        for joint, keys in problem.keys.items():
-            if trial_cost[joint] < cost[joint]:  # (each joint on its own cost)
-                for key in keys:
-                    accepted.joints[key][joint] = trial_at.joints[key][joint]
-                damping[joint] = max(damping[joint] / 3.0, 1e-7)
-            else:
-                damping[joint] *= 4.0
-        if problem.with_mass:
-            if trial_cost.sum() < cost.sum():
-                accepted.mass_scale = trial_at.mass_scale
-                damping[-1] = max(damping[-1] / 3.0, 1e-7)
-            else:
-                damping[-1] *= 4.0
-        mine = np.array(sorted(problem.keys))  # (the others' costs move by the coupling alone)
-        cost, trial_cost = cost[mine], trial_cost[mine]
-        improved = trial_cost < cost
-        gain = float(np.sum((cost - trial_cost)[improved])) / max(float(cost.sum()), 1e-300)
-        say(
-            f"  iteration {done}: cost {cost.sum():.6g} -> "
-            f"{np.where(improved, trial_cost, cost).sum():.6g}, {improved.sum()} of "
-            f"{len(cost)} joints improved"
-        )
-        at = accepted
-        if improved.any() or (problem.with_mass and accepted.mass_scale != linearised_mass):
-            linearised = None
-        if improved.any() and gain < tolerance:  # (a step every joint refused: not the end)
-            converged = True
-            break
-    return at, converged, done
 
 
 # ------------------------------------------------------------------------------ the fit
@@ -485,7 +230,7 @@ def _fit_hung(
     start = leg_figures_of(base)
     n = len(base.joints)
     fit_rows, held_rows = _rows(runs)
-    replays = _Replays(runs, base, options.workers, options.ray)
+    replays = Replays(runs, base, options.workers, options.ray)
     try:
         first = replays.many([start])[0]
         if first is None:
@@ -493,8 +238,8 @@ def _fit_hung(
         weights = _weights(first, fit_rows)
         say(f"fitting {len(JOINT_FIGURES)} figures on each of {n} joints, coulomb-viscous")
         common = {j: JOINT_FIGURES for j in range(n)}
-        problem = _Problem(common, options.fit_mass_scale, fit_rows, weights)
-        values, converged, used = _solve(
+        problem = Problem(common, options.fit_mass_scale, fit_rows, weights)
+        values, converged, used = solve(
             replays, problem, start, options.max_iterations, options.tolerance, say
         )
         say("each friction model on the held-out samples")
@@ -510,16 +255,16 @@ def _fit_hung(
         if any(m is not GearboxFriction.COULOMB_VISCOUS for m in chosen.models):
             say("fitting every figure again with each joint's friction model")
             keys = {j: chosen.keys_of(j) for j in range(n)}
-            problem = _Problem(keys, options.fit_mass_scale, fit_rows, weights)
-            chosen, converged, more = _solve(
+            problem = Problem(keys, options.fit_mass_scale, fit_rows, weights)
+            chosen, converged, more = solve(
                 replays, problem, chosen, options.max_iterations, options.tolerance, say
             )
             used += more
         keys = {j: chosen.keys_of(j) for j in range(n)}
-        problem = _Problem(keys, options.fit_mass_scale, fit_rows, weights)
-        final, moved = _jacobian(replays, problem, chosen)
+        problem = Problem(keys, options.fit_mass_scale, fit_rows, weights)
+        final, moved = jacobian(replays, problem, chosen)
         assert final is not None
-        _, _, _, blocks = _normal_equations(problem, final, moved)
+        _, _, _, blocks = normal_equations(problem, final, moved)
         estimates = _intervals(problem, chosen, final, blocks, moved, options)
     finally:
         replays.close()
@@ -559,12 +304,12 @@ def _fit_on_feet(
     """The figures the suspended excitation left undetermined, fitted on runs on the feet with
     every other figure held: a few figures, strongly coupled through the ground, so each has
     its own column (no block structure) and scipy's trust-region least squares solves them."""
-    replays = _Replays(runs, base, options.workers, options.ray)
+    replays = Replays(runs, base, options.workers, options.ray)
 
     def values(x: np.ndarray) -> LegFigures:
         out = start
         for (joint, key), xi in zip(columns, x, strict=True):
-            out = _moved(out, key, [joint], float(xi))
+            out = moved_figures(out, key, [joint], float(xi))
         return out
 
     try:
@@ -613,7 +358,7 @@ def _fit_on_feet(
 
 
 def _choose_friction(
-    replays: _Replays,
+    replays: Replays,
     values: LegFigures,
     weights: np.ndarray,
     fit_rows: Rows,
@@ -634,14 +379,14 @@ def _choose_friction(
         if own:
             say(f"  {model.value}: its figures on every joint")
             keys = {j: FRICTION_KEYS + own for j in range(n)}
-            problem = _Problem(keys, False, fit_rows, weights)
-            candidate, *_ = _solve(
+            problem = Problem(keys, False, fit_rows, weights)
+            candidate, *_ = solve(
                 replays, problem, candidate, options.friction_iterations, options.tolerance, say
             )
         replayed = replays.many([candidate])[0]
         scores[model] = (
             np.full(n, math.inf) if replayed is None
-            else _joint_costs(replayed, held_rows, weights)
+            else joint_costs(replayed, held_rows, weights)
         )  # fmt: skip
         candidates[model] = candidate
     return scores, candidates
@@ -660,7 +405,7 @@ def _best_model(
 
 
 def _intervals(
-    problem: _Problem,
+    problem: Problem,
     values: LegFigures,
     residual: list[np.ndarray],
     blocks: dict[int, np.ndarray],
@@ -673,7 +418,7 @@ def _intervals(
     n = len(values.models)
     out: dict[str, list[Estimate]] = {}
     for joint, keys in problem.keys.items():
-        res = _joint_residuals(residual, problem.rows, problem.weights, joint)
+        res = joint_residuals(residual, problem.rows, problem.weights, joint)
         sizes = np.cumsum([0] + [len(r) for r in res])
         block = blocks[joint]
         jac = [block[a:b] for a, b in zip(sizes[:-1], sizes[1:], strict=True)]
@@ -689,8 +434,8 @@ def _intervals(
         assert other is not None
         jac, res = [], []
         for joint in problem.keys:
-            r = np.concatenate(_joint_residuals(residual, problem.rows, problem.weights, joint))
-            m = np.concatenate(_joint_residuals(other, problem.rows, problem.weights, joint))
+            r = np.concatenate(joint_residuals(residual, problem.rows, problem.weights, joint))
+            m = np.concatenate(joint_residuals(other, problem.rows, problem.weights, joint))
             jac.append(((m - r) / FD_STEP)[:, :, None])
             res.append(r)
         half = z * math.sqrt(max(float(sandwich_covariance(jac, res)[0, 0]), 0.0))

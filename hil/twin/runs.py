@@ -133,6 +133,24 @@ class RecordedRun:
             raise NotATwinRun(f"{self.out_dir}: {exc.args[0]}") from None
 
 
+def first_torque_tick(run: RecordedRun) -> int:
+    """The first tick a replay compares: the one after torque came on."""
+    on = np.flatnonzero(run.torque_on_over_tick())
+    return int(on[0]) + 1 if on.size else run.ticks
+
+
+def judge_run(run: RecordedRun, problems: list[str]) -> None:
+    """A run whose excitation the supervisor rewrote, or that did not complete, into problems."""
+    coverage = (run.run.summary.get("metrics") or {}).get("excitation_coverage")
+    if isinstance(coverage, int | float) and coverage < 1.0:
+        problems.append(
+            f"{run.out_dir}: the supervisor rewrote {100 * (1 - coverage):.1f} % of the "
+            "excitation's goals (a limit or a safety hold)"
+        )
+    if run.run.termination != "completed":
+        problems.append(f"{run.out_dir}: the run did not complete ({run.run.termination})")
+
+
 def read_run(path: str | Path) -> RecordedRun:
     """One run directory, checked (NotATwinRun says what is wrong)."""
     path = Path(path)

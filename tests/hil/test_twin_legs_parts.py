@@ -15,18 +15,8 @@ import numpy as np
 import pytest
 
 from hil.config import load_config
-from hil.twin.legs import (
-    LegsFitOptions,
-    Rows,
-    _best_model,
-    _intervals,
-    _jacobian,
-    _normal_equations,
-    _Problem,
-    _Replays,
-    _solve,
-    _weights,
-)
+from hil.twin.block_lm import Problem, Replays, Rows, jacobian, normal_equations, solve
+from hil.twin.legs import LegsFitOptions, _best_model, _intervals, _weights
 from hil.twin.legs_figures import JOINT_FIGURES, leg_figures_of, legs_twin_config
 from hil.twin.replay import Reading, replay_goals
 from hil.twin.runs import read_run
@@ -107,17 +97,17 @@ def test_the_fit_finds_stiffness_and_servo_gain_changed_on_the_hardware(short_ru
                       duration_s=SHORT_S)  # fmt: skip
     run = read_run(recorded.out_dir)
     fit_rows = Rows((np.arange(run.ticks) > 5,))
-    replays = _Replays([run], run.config, workers=1)
+    replays = Replays([run], run.config, workers=1)
     try:
         first = replays.many([start])[0]
         assert first is not None
         weights = _weights(first, fit_rows)
         keys = {j: ("gear_stiffness_nm_per_rad", "position_gain_per_s") for j in (0, 6)}
-        problem = _Problem(keys, False, fit_rows, weights)
-        found, _, _ = _solve(replays, problem, start, 6, 1e-6, lambda _: None)
-        residual, moved = _jacobian(replays, problem, found)
+        problem = Problem(keys, False, fit_rows, weights)
+        found, _, _ = solve(replays, problem, start, 6, 1e-6, lambda _: None)
+        residual, moved = jacobian(replays, problem, found)
         assert residual is not None
-        _, _, _, blocks = _normal_equations(problem, residual, moved)
+        _, _, _, blocks = normal_equations(problem, residual, moved)
         estimates = _intervals(problem, found, residual, blocks, moved, LegsFitOptions())
     finally:
         replays.close()

@@ -12,8 +12,8 @@ import pytest
 
 from hil.cli import main
 from hil.config import load_config
+from hil.twin.block_lm import replay_all
 from hil.twin.executor import ReplayExecutor, install_runs
-from hil.twin.legs import _replay_all
 from hil.twin.legs_figures import leg_figures_of
 from hil.twin.runs import read_run
 from hil.vocabulary import Robot
@@ -38,8 +38,8 @@ def test_ray_replays_are_the_in_process_ones(short_run: Path) -> None:
     other = start.copy()
     other.joints["gear_stiffness_nm_per_rad"] *= 1.2
     before = descendants(os.getpid())
-    here = ReplayExecutor(_replay_all, install_runs, ([run], run.config))
-    on_ray = ReplayExecutor(_replay_all, install_runs, ([run], run.config), workers=2, ray="")
+    here = ReplayExecutor(replay_all, install_runs, ([run], run.config))
+    on_ray = ReplayExecutor(replay_all, install_runs, ([run], run.config), workers=2, ray="")
     try:
         assert on_ray.where.startswith("on Ray")
         local = here.many([start, other])
