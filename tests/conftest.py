@@ -40,6 +40,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
 
 
+# tryfirst: xdist's worker names each item by its group in this same hook; after it, a group
+# added here would not reach the scheduler (a module's tests went to both workers, each building
+# the module's fixtures: the legs' twin was fitted twice at once)
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     hardware = config.getoption("--hardware-config")
     skip_hardware = pytest.mark.skip(reason="needs a real testbed: --hardware-config FILE")
