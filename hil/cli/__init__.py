@@ -59,6 +59,23 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv)
     except KeyboardInterrupt:  # during the imports, the parsing, or a command's own clean-up
         return _interrupted(process_ends=argv is None)
+    except ImportError as exc:
+        # a Ctrl-C inside a compiled module's initialisation (MuJoCo's, pinocchio's) reaches
+        # Python as "ImportError: initialization failed" raised from the KeyboardInterrupt
+        if not _raised_by_an_interrupt(exc):
+            raise
+        return _interrupted(process_ends=argv is None)
+
+
+def _raised_by_an_interrupt(exc: BaseException) -> bool:
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
 
 
 def _interrupted(process_ends: bool) -> int:
