@@ -16,6 +16,8 @@ import os
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
+from threadpoolctl import threadpool_limits
+
 if TYPE_CHECKING:
     from hil.config import Config
     from hil.twin.runs import RecordedRun
@@ -29,6 +31,13 @@ _INSTALLED: list[int] = []  # in a Ray worker: the id of the shared data install
 _RUNS: list[RecordedRun] = []
 _BASE: list[Config] = []
 
+# A fit's linear algebra on one BLAS thread, in each process it runs in (the fit's own and every
+# replay's): a sum's order follows the thread count, so with the machine's default a fit run
+# alone and the same fit beside a gain designer (which holds one thread) differed in the 14th
+# digit, and a chaotic walk replayed on the two twins by 2x. The fits' few small matrices gain
+# nothing from more threads.
+one_blas_thread = threadpool_limits.wrap(limits=1, user_api="blas")
+
 
 def install_runs(runs: list[RecordedRun], base: Config) -> None:
     """The runs and configuration for this process's replays. A fit's trial figures may make
@@ -39,6 +48,9 @@ def install_runs(runs: list[RecordedRun], base: Config) -> None:
 
     _RUNS[:] = runs
     _BASE[:] = [base]
+    # a Ray worker's process (a forked one inherits the fit's): held for the process's life, or
+    # in the fit's own process until the fit's `one_blas_thread` gives back the thread count
+    threadpool_limits(limits=1, user_api="blas")
     mujoco.set_mju_user_warning(_ignore_warning)
 
 

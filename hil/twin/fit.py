@@ -42,7 +42,7 @@ import scipy.stats
 from hil.config import Config, ConfigError
 from hil.identify.covariance import sandwich_covariance
 from hil.identify.records import MIN_SAMPLES
-from hil.twin.executor import ReplayExecutor, install_runs, installed
+from hil.twin.executor import ReplayExecutor, install_runs, installed, one_blas_thread
 from hil.twin.figures import (
     COMMON,
     FIGURES,
@@ -325,6 +325,7 @@ def _start(runs: list[RecordedRun], base: Config, notes: list[str]) -> dict[str,
     return start
 
 
+@one_blas_thread
 def fit_twin(
     runs: Sequence[RecordedRun],
     options: FitOptions | None = None,

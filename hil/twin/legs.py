@@ -65,6 +65,7 @@ from hil.twin.block_lm import (
     normal_equations,
     solve,
 )
+from hil.twin.executor import one_blas_thread
 from hil.twin.figures import FRICTION_FIGURES, Scale
 from hil.twin.fit import (
     CHANNEL_FLOORS,
@@ -164,6 +165,7 @@ def _weights(blocks: list[np.ndarray], rows: Rows) -> np.ndarray:
     return 1.0 / np.maximum(rms, floors)
 
 
+@one_blas_thread
 def fit_legs(
     runs: Sequence[RecordedRun],
     options: LegsFitOptions | None = None,

@@ -37,7 +37,7 @@ from hil.vocabulary import Robot
 from tests.support.bench_hardware import record
 from tests.support.legs_hardware import legs_truth_config
 
-# the fit replays the 66 s excitation some 150 times, two at a time: ~12 min on 2 cores
+# the fit replays the 66 s excitation some 150 times, two at a time: ~9-12 min on 2 cores
 pytestmark = [pytest.mark.faults, pytest.mark.slow, pytest.mark.timeout(3000)]
 
 FITTED = ("suspended-chirp", "push")  # hung, then on the feet (with pid)
