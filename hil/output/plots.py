@@ -105,14 +105,14 @@ def overload_time_s(run: RunData, joint: str = "") -> float | None:
     return first_time(run.time_s, (flags & ActuatorFault.OVERLOAD) != 0)
 
 
-def save_figure(figure: Figure, path: Path) -> Path:
+def save_figure(figure: Figure, path: Path, dpi: int = DPI) -> Path:
     """The figure as a PNG; a disk that did not take it whole leaves no half file (the OSError
     goes on: the caller says the figure is missing)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(figure)
     try:
-        figure.savefig(path, dpi=DPI)
+        figure.savefig(path, dpi=dpi)
     except OSError:
         Path(path).unlink(missing_ok=True)
         raise

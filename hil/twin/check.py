@@ -20,13 +20,16 @@ import enum
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hil.config import Config
 from hil.twin.replay import Reading, Replayed, replay_closed_loop, replay_goals
 from hil.twin.runs import FORCE_SIGNAL, SIGNALS, RecordedRun
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 class Loop(enum.StrEnum):
@@ -229,11 +232,7 @@ def _figure(run: RecordedRun, traces: dict[tuple[Loop, Emulator], Replayed], out
     np.atleast_1d(axes)[0].legend(fontsize=8, loc="upper right")
     np.atleast_1d(axes)[-1].set_xlabel("time [s]")
     fig.suptitle(f"{run.name}: recorded vs replayed", fontsize=10)
-    fig.tight_layout()
-    path = out / f"{run.name}.png"
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return _save(fig, out / f"{run.name}.png")
 
 
 def _joints_figure(run: RecordedRun, found: list[Residual], out: Path) -> Path:
@@ -260,8 +259,17 @@ def _joints_figure(run: RecordedRun, found: list[Residual], out: Path) -> Path:
         axis.set_ylabel(f"link angle MAE\n[mrad], {loop}", fontsize=8)
         axis.legend(fontsize=8)
     fig.suptitle(f"{run.name}: each joint's link-angle error, twin vs default", fontsize=10)
+    return _save(fig, out / f"{run.name}-joints.png")
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    """Laid out and written whole or not at all (hil.output.plots.save_figure), then closed."""
+    import matplotlib.pyplot as plt
+
+    from hil.output.plots import save_figure
+
     fig.tight_layout()
-    path = out / f"{run.name}-joints.png"
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    try:
+        return save_figure(fig, path, dpi=90)
+    finally:
+        plt.close(fig)
